@@ -1,0 +1,49 @@
+"""One entry point: `tax3d <command> [options]`; each command is a module with `Args` and `run(args)`."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+from tax3d.errors import UsageError
+
+COMMANDS = {
+    "generate": ("tax3d.sim.generate", "generate demonstrations in the official file layout"),
+    "train": ("tax3d.train", "train a TAX3D variant on demonstration folders"),
+    "predict": ("tax3d.predict", "predict goal clouds for demonstration files with a checkpoint"),
+    "demo": ("tax3d.demo", "the main job on the embedded default"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: tax3d <command> [options]", "", "commands:"]
+    lines += [f"  {name:<10} {help_}" for name, (_, help_) in COMMANDS.items()]
+    lines += ["", "Run `tax3d <command> --help` for the options of a command."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    import tyro
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(_usage())
+        return 0
+    name, rest = argv[0], argv[1:]
+    if name not in COMMANDS:
+        print(f"tax3d: error: unknown command {name!r}; expected one of {', '.join(COMMANDS)}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(COMMANDS[name][0])
+    try:
+        args = tyro.cli(module.Args, args=rest, prog=f"tax3d {name}", description=COMMANDS[name][1])
+        return int(module.run(args) or 0)
+    except UsageError as err:
+        print(f"tax3d {name}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"tax3d {name}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
