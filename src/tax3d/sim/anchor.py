@@ -1,0 +1,79 @@
+"""The rigid anchor of HangProcCloth, built from primitives: the hanger and the tall rod it stands on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet
+
+# REFERENCE.md, "HangProcCloth scene": sizes before the global scale of 10.
+SCALE = 10.0
+HANGER_POSITION = np.array([0.0, 0.0, 8.0])
+# (radius, length, centre xyz, rotation about y in degrees) of each hanger cylinder.
+HANGER_PARTS = (
+    (0.01, 0.05, (0.0, 0.0, 0.055), 0.0),  # vertical top piece
+    (0.01, 0.15, (-0.07, 0.0, 0.005), 72.0),  # left arm, rising towards the middle
+    (0.01, 0.15, (0.07, 0.0, 0.005), 108.0),  # right arm
+)
+ROD_PARTS = (
+    (0.1, 0.05, (0.0, 0.0, 0.0), 0.0),  # base disc
+    (0.03, 0.8, (0.0, 0.0, 0.4), 0.0),  # the rod itself
+)
+# Goal location in the anchor's frame (REFERENCE.md): the centre of the hanger.
+GOAL_LOCAL = np.array([0.0, 0.0, 8.2])
+
+
+def rotation_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def pose_points(points: np.ndarray, rot_z: float, trans: np.ndarray) -> np.ndarray:
+    """p -> Rz(rot_z) p + trans: the anchor's random pose, about the world origin."""
+    return np.asarray(points) @ rotation_z(rot_z).T + np.asarray(trans)
+
+
+def goal_position(rot_z: float, trans: np.ndarray) -> np.ndarray:
+    return pose_points(GOAL_LOCAL[None], rot_z, trans)[0]
+
+
+def _cylinders(client: int, parts) -> int:
+    radii = [r * SCALE for r, _, _, _ in parts]
+    lengths = [length * SCALE for _, length, _, _ in parts]
+    centres = [[c * SCALE for c in centre] for _, _, centre, _ in parts]
+    orientations = [pybullet.getQuaternionFromEuler([0.0, np.deg2rad(deg), 0.0]) for *_, deg in parts]
+    kw = dict(radii=radii, lengths=lengths, physicsClientId=client)
+    collision = pybullet.createCollisionShapeArray(
+        [pybullet.GEOM_CYLINDER] * len(parts),
+        collisionFramePositions=centres,
+        collisionFrameOrientations=orientations,
+        **kw,
+    )
+    visual = pybullet.createVisualShapeArray(
+        [pybullet.GEOM_CYLINDER] * len(parts),
+        visualFramePositions=centres,
+        visualFrameOrientations=orientations,
+        rgbaColors=[[0.55, 0.4, 0.25, 1.0]] * len(parts),
+        **kw,
+    )
+    return collision, visual
+
+
+def load_anchor(client: int, rot_z: float = 0.0, trans=(0.0, 0.0, 0.0)) -> tuple[int, int]:
+    """Create the hanger and the rod, fixed, under the anchor pose; returns their body ids."""
+    ids = []
+    for parts, base in ((HANGER_PARTS, HANGER_POSITION), (ROD_PARTS, np.zeros(3))):
+        collision, visual = _cylinders(client, parts)
+        body = pybullet.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=collision,
+            baseVisualShapeIndex=visual,
+            basePosition=pose_points(base[None], rot_z, trans)[0].tolist(),
+            baseOrientation=pybullet.getQuaternionFromEuler([0.0, 0.0, rot_z]),
+            physicsClientId=client,
+        )
+        pybullet.changeDynamics(
+            body, -1, lateralFriction=1.0, spinningFriction=1.0, rollingFriction=1.0, restitution=0.0,
+            physicsClientId=client,
+        )
+        ids.append(body)
+    return ids[0], ids[1]

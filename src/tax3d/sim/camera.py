@@ -1,0 +1,68 @@
+"""The anchor point cloud: one depth + segmentation render with the reference camera, unprojected to 3D."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pybullet
+
+from tax3d.sim.anchor import load_anchor, pose_points
+
+# REFERENCE.md, "HangProcCloth scene": the authors' camera, column-major, 200 x 200, tiny renderer.
+VIEW = [
+    0.034899137914180756, 0.1009947806596756, -0.9942747354507446, 0.0,
+    -0.9993908405303955, 0.0035267791245132685, -0.03472048044204712, 0.0,
+    0.0, 0.9948807954788208, 0.10105633735656738, 0.0,
+    4.000894546508789, -5.313570022583008, -7.343255996704102, 1.0,
+]  # fmt: skip
+PROJECTION = [
+    0.7499999403953552, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0,
+    0.0, 0.0, -1.0000200271606445, -1.0, 0.0, 0.0, -0.02000020071864128, 0.0,
+]  # fmt: skip
+IMAGE_SIZE = 200
+
+
+def depth_to_points(depth: np.ndarray, view=VIEW, projection=PROJECTION) -> np.ndarray:
+    """Unproject an OpenGL depth buffer (H, W) to world points (H, W, 3), corner grid, no half-pixel offset."""
+    h, w = depth.shape
+    y, x = np.mgrid[-1 : 1 : 2 / h, -1 : 1 : 2 / w]
+    ndc = np.stack([x, -y, 2 * depth - 1, np.ones_like(depth)], axis=-1).reshape(-1, 4)
+    pv = np.asarray(projection).reshape(4, 4, order="F") @ np.asarray(view).reshape(4, 4, order="F")
+    points = ndc @ np.linalg.inv(pv).T
+    return (points[:, :3] / points[:, 3:]).reshape(h, w, 3)
+
+
+def render_segmented_points(client: int, body_ids, size: int = IMAGE_SIZE) -> np.ndarray:
+    """World points of the pixels whose segment is one of body_ids, ordered by image column, then row."""
+    _, _, _, depth, seg = pybullet.getCameraImage(
+        size, size, viewMatrix=VIEW, projectionMatrix=PROJECTION, shadow=0,
+        renderer=pybullet.ER_TINY_RENDERER, physicsClientId=client,
+    )  # fmt: skip
+    depth = np.asarray(depth, dtype=np.float64).reshape(size, size)
+    seg = np.asarray(seg).reshape(size, size)
+    points = depth_to_points(depth)
+    keep = np.isin(seg, list(body_ids))
+    return points.transpose(1, 0, 2)[keep.T]
+
+
+@functools.lru_cache(maxsize=4)
+def canonical_anchor_cloud(with_floor: bool) -> np.ndarray:
+    """The hanger and rod rendered once at rot = 0, trans = 0 (REFERENCE.md: the camera moves with the anchor)."""
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        if with_floor:
+            plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client)
+            visual = pybullet.createVisualShape(pybullet.GEOM_PLANE, physicsClientId=client)
+            pybullet.createMultiBody(0, plane, visual, physicsClientId=client)
+        ids = load_anchor(client)
+        points = render_segmented_points(client, ids)
+    finally:
+        pybullet.disconnect(client)
+    points.setflags(write=False)
+    return points
+
+
+def anchor_cloud(rot_z: float, trans, with_floor: bool = True) -> np.ndarray:
+    """The anchor cloud under a random pose: the canonical render moved by p -> Rz p + trans."""
+    return pose_points(canonical_anchor_cloud(with_floor), rot_z, trans)
