@@ -1,0 +1,274 @@
+"""Training samples: point sampling, object-specific frames, augmentation and the target of each variant.
+
+Frames and targets follow the paper (Section 3.1, "Object-Specific Frames") and REFERENCE.md, "Model":
+anchor frame = anchor points minus the anchor mean, action frame = action points minus the action mean;
+the goal is expressed in the anchor frame. A sample's frame origins are kept so that `to_world` maps a
+model output (a cross-displacement or goal points, in the variant's frame) back to world-frame goal points.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from tax3d.data.format import DemoError, list_demos, load_demo
+from tax3d.errors import UsageError
+from tax3d.geometry import farthest_point_sample, random_angle, rotate_z
+
+VARIANTS = ("cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp", "rd", "rp")
+
+
+@dataclass(frozen=True)
+class VariantSpec:
+    """What a variant predicts, in which frame, and from which inputs (paper Section 4, ablations)."""
+
+    name: str
+    target: str  # "displacement" (cross-displacement) or "point" (goal action points)
+    object_centric: bool = True  # action on its mean, anchor and goal on the anchor mean; False: world frame
+    action_context: bool = True  # False: the model does not encode the action points (NAC)
+    scene: bool = False  # one scene cloud (action + anchor) on its mean, self-attention only (SD/SP)
+    diffusion: bool = True  # False: one regression pass with an MSE loss (RD/RP)
+
+
+_SPECS = {
+    "cd": VariantSpec("cd", "displacement"),
+    "cp": VariantSpec("cp", "point"),
+    "cd_w": VariantSpec("cd_w", "displacement", object_centric=False),
+    "cp_w": VariantSpec("cp_w", "point", object_centric=False),
+    "cd_nac": VariantSpec("cd_nac", "displacement", action_context=False),
+    "cp_nac": VariantSpec("cp_nac", "point", action_context=False),
+    "sd": VariantSpec("sd", "displacement", object_centric=False, scene=True),
+    "sp": VariantSpec("sp", "point", object_centric=False, scene=True),
+    "rd": VariantSpec("rd", "displacement", diffusion=False),
+    "rp": VariantSpec("rp", "point", diffusion=False),
+}
+
+
+def variant_spec(name: str | VariantSpec) -> VariantSpec:
+    """The spec of a variant name (case and '-' or '_' as in "CD-W" are accepted)."""
+    if isinstance(name, VariantSpec):
+        return name
+    key = str(name).strip().lower().replace("-", "_")
+    if key not in _SPECS:
+        raise UsageError(f"unknown variant '{name}'; expected one of {', '.join(VARIANTS)}")
+    return _SPECS[key]
+
+
+def frame_inputs(action: torch.Tensor, anchor: torch.Tensor, spec: VariantSpec) -> dict:
+    """Action (..., N, 3) and anchor (..., M, 3) world points in the variant's frames, and the frame origins.
+
+    Returns action, anchor (same shapes), action_mean and anchor_mean (..., 3): the world positions of the
+    action frame's and the anchor (goal) frame's origins. -W: both zero. SD/SP: both the scene cloud's mean.
+    """
+    if spec.scene:
+        scene_mean = torch.cat([action, anchor], dim=-2).mean(-2)
+        action_mean = anchor_mean = scene_mean
+    elif spec.object_centric:
+        action_mean, anchor_mean = action.mean(-2), anchor.mean(-2)
+    else:
+        action_mean = action.new_zeros(action.shape[:-2] + (3,))
+        anchor_mean = anchor.new_zeros(anchor.shape[:-2] + (3,))
+    return {
+        "action": action - action_mean[..., None, :],
+        "anchor": anchor - anchor_mean[..., None, :],
+        "action_mean": action_mean,
+        "anchor_mean": anchor_mean,
+    }
+
+
+def make_target(goal: torch.Tensor, frames: dict, spec: VariantSpec, target_scale: float = 1.0) -> torch.Tensor:
+    """The variant's target for world goal points (..., N, 3): (..., N, 3), or (..., N + M, 3) for SD/SP.
+
+    CD: goal in the anchor frame minus action in the action frame; CP: goal in the anchor frame
+    (REFERENCE.md, Model). SD/SP append the anchor's target: zero displacement, or the anchor points.
+    """
+    goal_in_frame = goal - frames["anchor_mean"][..., None, :]
+    if spec.target == "displacement":
+        target = goal_in_frame - frames["action"]
+        anchor_target = torch.zeros_like(frames["anchor"])
+    else:
+        target = goal_in_frame
+        anchor_target = frames["anchor"]
+    if spec.scene:
+        target = torch.cat([target, anchor_target], dim=-2)
+    return target * target_scale
+
+
+def to_world(prediction: torch.Tensor, frames: dict, spec: VariantSpec, target_scale: float = 1.0) -> torch.Tensor:
+    """World-frame goal action points (..., N, 3) from a model output in the variant's frame.
+
+    `frames` holds action (..., N, 3) and anchor_mean (..., 3) as made by `frame_inputs` or `make_sample`
+    (a sample or a collated batch); their leading dimensions must broadcast against the prediction's, so a
+    single scene's frames serve a stack of samples (S, N, 3). For SD/SP the anchor rows of the prediction
+    (after the first N) are dropped. `target_scale` must be the one the targets were made with.
+    """
+    action = frames["action"]
+    n = action.shape[-2]
+    if prediction.shape[-2] < n or (prediction.shape[-2] != n and not spec.scene):
+        raise ValueError(f"prediction has {prediction.shape[-2]} points; the frames have {n} action points")
+    goal = prediction[..., :n, :] / target_scale
+    if spec.target == "displacement":
+        goal = goal + action
+    return goal + frames["anchor_mean"][..., None, :]
+
+
+def _sample_indices(points: torch.Tensor, k: int | None, generator: torch.Generator | None) -> torch.Tensor:
+    if k is None:
+        return torch.arange(points.shape[0])
+    return farthest_point_sample(points, k, start=generator)
+
+
+def make_sample(
+    action,
+    anchor,
+    goal,
+    spec: VariantSpec | str,
+    generator: torch.Generator | None = None,
+    num_action_points: int | None = 512,
+    num_anchor_points: int | None = 512,
+    rotate: bool = False,
+    target_scale: float = 1.0,
+) -> dict:
+    """One training sample from world-frame action (N, 3), anchor (M, 3) and goal (N, 3) points.
+
+    FPS picks num_action_points and num_anchor_points (None: all points, in order). With `rotate`, the
+    anchor and the goal turn about z by U(0, 2 pi) and the action does not (REFERENCE.md, Training): the
+    result is a new scene, and `goal` is that scene's world-frame goal. Returns float32 tensors
+    (plus the int64 action_idx); see `DemoDataset` for the keys.
+    """
+    spec = variant_spec(spec)
+    action, anchor, goal = (torch.as_tensor(x, dtype=torch.float64) for x in (action, anchor, goal))
+    action_idx = _sample_indices(action, num_action_points, generator)
+    anchor = anchor[_sample_indices(anchor, num_anchor_points, generator)]
+    action, goal = action[action_idx], goal[action_idx]
+
+    # The pivot is the anchor mean (the rotation happens in the anchor frame), except for -W, which has no
+    # object frame: there the scene turns about the world origin.
+    pivot = anchor.mean(0) if (spec.object_centric or spec.scene) else anchor.new_zeros(3)
+    angle = random_angle(generator) if rotate else 0.0
+    if rotate:
+        anchor = rotate_z(anchor - pivot, angle) + pivot
+        goal = rotate_z(goal - pivot, angle) + pivot
+
+    frames = frame_inputs(action, anchor, spec)
+    sample = {
+        **frames,
+        "target": make_target(goal, frames, spec, target_scale),
+        "goal": goal,
+        "angle": torch.tensor(angle, dtype=torch.float64),
+        "pivot": pivot,
+    }
+    sample = {key: value.to(torch.float32) for key, value in sample.items()}
+    sample["action_idx"] = action_idx.to(torch.int64)
+    return sample
+
+
+def demo_files(sources) -> list[Path]:
+    """The demo files of one or more folders or files, folders expanded in index order."""
+    if isinstance(sources, (str, os.PathLike)):
+        sources = [sources]
+    files: list[Path] = []
+    for source in sources:
+        source = Path(source)
+        if source.suffix == ".npz" and not source.is_dir():
+            files.append(source)
+        else:
+            files.extend(list_demos(source))
+    if not files:
+        raise UsageError("no demonstration folders or files given")
+    return files
+
+
+def split_demos(paths, val_fraction: float = 0.1, seed: int = 0) -> tuple[list[Path], list[Path]]:
+    """(train, val) demo files carved at random from one or more folders or files; each part non-empty."""
+    files = demo_files(paths)
+    if not 0.0 < val_fraction < 1.0:
+        raise UsageError(f"val_fraction is {val_fraction}; expected a value between 0 and 1")
+    if len(files) < 2:
+        raise UsageError(f"{files[0].parent}: {len(files)} demonstration(s); a validation split needs at least 2")
+    n_val = min(max(1, round(len(files) * val_fraction)), len(files) - 1)
+    order = np.random.default_rng(seed).permutation(len(files))
+    val = set(order[:n_val].tolist())
+    return [f for i, f in enumerate(files) if i not in val], [f for i, f in enumerate(files) if i in val]
+
+
+class DemoDataset(Dataset):
+    """Samples for one variant from the demos of one or more folders (or demo files), cached in memory.
+
+    Each item is a dict of tensors (Na = num_action_points, Nb = num_anchor_points):
+      action (Na, 3), anchor (Nb, 3): inputs in the variant's frames (`frame_inputs`)
+      action_mean, anchor_mean (3,): world positions of those frames' origins
+      target (Na, 3), or (Na + Nb, 3) for SD/SP: the variant's target, times target_scale
+      goal (Na, 3): the world-frame goal of the (possibly rotated) scene; to_world(target, item) returns it
+      angle (): the augmentation's z-rotation; pivot (3,): the world point it turned about
+      action_idx (Na,) int64: rows of the demo's action cloud; demo_index () int64: position in `files`
+    NAC variants get the same items as CD/CP: to_world needs the action points, the model ignores them.
+    Item i of epoch e uses demo i % len(files) and a generator seeded by (seed, e, i); call set_epoch(e)
+    before each epoch (with DataLoader workers, before the loader's iterator is made).
+    """
+
+    def __init__(
+        self,
+        sources,
+        variant: str | VariantSpec = "cd",
+        *,
+        train: bool = True,
+        rotate: bool | None = None,
+        num_action_points: int | None = 512,
+        num_anchor_points: int | None = 512,
+        train_size: int | None = None,
+        target_scale: float = 1.0,
+        seed: int = 0,
+    ):
+        self.spec = variant_spec(variant)
+        self.files = demo_files(sources)
+        if train_size is not None and train_size < 1:
+            raise UsageError(f"train_size is {train_size}; expected a positive number of samples per epoch")
+        if not target_scale > 0:
+            raise UsageError(f"target_scale is {target_scale}; expected a positive number")
+        self.rotate = train if rotate is None else rotate
+        self.num_action_points = num_action_points
+        self.num_anchor_points = num_anchor_points
+        self.train_size = train_size
+        self.target_scale = float(target_scale)
+        self.seed = int(seed)
+        self.epoch = 0
+        self.demos = []
+        for path in self.files:
+            demo = load_demo(path)
+            self.demos.append(tuple(torch.from_numpy(np.asarray(x, dtype=np.float64)) for x in (
+                demo["action_pc"], demo["anchor_pc"], demo["action_pc"] + demo["flow"])))
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = int(epoch)
+
+    def __len__(self) -> int:
+        return self.train_size if self.train_size is not None else len(self.demos)
+
+    def generator(self, index: int) -> torch.Generator:
+        seed = np.random.SeedSequence([self.seed, self.epoch, index]).generate_state(1)[0]
+        return torch.Generator().manual_seed(int(seed))
+
+    def __getitem__(self, index: int) -> dict:
+        if not 0 <= int(index) < len(self):
+            raise IndexError(f"index {index} out of range for {len(self)} samples")
+        index = int(index)
+        demo_index = index % len(self.demos)
+        action, anchor, goal = self.demos[demo_index]
+        sample = make_sample(
+            action, anchor, goal, self.spec, self.generator(index),
+            self.num_action_points, self.num_anchor_points, self.rotate, self.target_scale,
+        )
+        sample["demo_index"] = torch.tensor(demo_index, dtype=torch.int64)
+        return sample
+
+
+__all__ = [
+    "VARIANTS", "VariantSpec", "variant_spec", "frame_inputs", "make_target", "to_world", "make_sample",
+    "demo_files", "split_demos", "DemoDataset", "DemoError",
+]

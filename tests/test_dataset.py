@@ -1,0 +1,303 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from torch.utils.data import DataLoader
+
+from tax3d.data.dataset import (
+    VARIANTS,
+    DemoDataset,
+    frame_inputs,
+    make_sample,
+    make_target,
+    split_demos,
+    to_world,
+    variant_spec,
+)
+from tax3d.data.format import DemoError, save_demo
+from tax3d.errors import UsageError
+from tax3d.geometry import rotate_z
+
+OFFICIAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "tax3d-official"
+NA, NB = 16, 24  # points sampled per cloud in these tests
+
+
+def synthetic_demo(rng, n=40, m=60):
+    """A cloth-like action cloud, a hanger-like anchor far from the origin, and a goal near the anchor."""
+    action = rng.normal(size=(n, 3)) * [2.0, 0.1, 2.0] + [0.0, 5.0, 8.0]
+    anchor = rng.normal(size=(m, 3)) * [0.5, 0.5, 2.0] + [4.0, -6.0, 3.0]
+    goal = rng.normal(size=(n, 3)) * [2.0, 0.5, 1.0] + [4.5, -6.5, 8.0]
+    return {
+        "action_pc": action,
+        "action_seg": np.ones(n),
+        "anchor_pc": anchor,
+        "anchor_seg": np.zeros(m, dtype=np.int32),
+        "flow": goal - action,
+        "speed_factor": np.array(1.0),
+        "rot": np.zeros(3),
+        "trans": np.zeros(3),
+        "deform_params": {"num_holes": 1, "node_density": 25, "w": 1.0, "h": 1.0,
+                          "holes": [{"x0": 8, "x1": 16, "y0": 9, "y1": 13}]},
+        "anchors": {0: {"pos": np.zeros(3), "vertices": [0]}},
+    }
+
+
+def write_demos(folder, count, seed=0):
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    demos = [synthetic_demo(rng) for _ in range(count)]
+    for i, demo in enumerate(demos):
+        save_demo(folder / f"demo_{i}.npz", demo)
+    return demos
+
+
+@pytest.fixture
+def demo_dir(tmp_path):
+    folder = tmp_path / "demos"
+    return folder, write_demos(folder, 3)
+
+
+def clouds(demo):
+    return demo["action_pc"], demo["anchor_pc"], demo["action_pc"] + demo["flow"]
+
+
+def gen(seed=0):
+    return torch.Generator().manual_seed(seed)
+
+
+def close(a, b, atol=1e-5):
+    torch.testing.assert_close(torch.as_tensor(a, dtype=torch.float32), torch.as_tensor(b, dtype=torch.float32),
+                               atol=atol, rtol=0)
+
+
+def test_variant_specs():
+    assert len(VARIANTS) == 10
+    for name in VARIANTS:
+        assert variant_spec(name).name == name
+    assert variant_spec("CD-W") == variant_spec("cd_w")
+    cd, cp_w, cd_nac, sp, rd = (variant_spec(v) for v in ("cd", "cp_w", "cd_nac", "sp", "rd"))
+    assert cd.target == "displacement" and cd.object_centric and cd.action_context and cd.diffusion
+    assert cp_w.target == "point" and not cp_w.object_centric
+    assert not cd_nac.action_context and cd_nac.object_centric
+    assert sp.scene and sp.target == "point"
+    assert not rd.diffusion and rd.target == "displacement"
+
+
+def test_unknown_variant_is_a_usage_error():
+    with pytest.raises(UsageError, match=r"unknown variant 'xyz'; expected one of cd, cp, cd_w"):
+        variant_spec("xyz")
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+@pytest.mark.parametrize("rotate", [False, True])
+@pytest.mark.parametrize("target_scale", [1.0, 0.25])
+def test_to_world_inverts_the_target(demo_dir, variant, rotate, target_scale):
+    _, demos = demo_dir
+    action, anchor, goal = clouds(demos[0])
+    spec = variant_spec(variant)
+    s = make_sample(action, anchor, goal, spec, gen(3), NA, NB, rotate=rotate, target_scale=target_scale)
+    close(to_world(s["target"], s, spec, target_scale), s["goal"])
+
+    idx = s["action_idx"].numpy()
+    close(s["action"] + s["action_mean"], action[idx])  # the action is never rotated
+    if rotate:
+        assert s["angle"] != 0
+        # The augmented scene: anchor and goal turned about the pivot; its goal is what to_world returns.
+        expected = rotate_z(torch.from_numpy(goal[idx]) - s["pivot"].double(), float(s["angle"])) + s["pivot"].double()
+        close(s["goal"], expected)
+    else:
+        assert s["angle"] == 0
+        close(s["goal"], goal[idx])
+
+
+def test_rotation_pivot_is_the_anchor_mean_except_world_frame(demo_dir):
+    _, demos = demo_dir
+    action, anchor, goal = clouds(demos[0])
+    for variant in ("cd", "sd", "cd_w"):
+        s = make_sample(action, anchor, goal, variant, gen(1), NA, NB, rotate=True)
+        anchor_world = s["anchor"] + s["anchor_mean"]
+        expected = torch.zeros(3) if variant == "cd_w" else anchor_world.mean(0)
+        close(s["pivot"], expected)
+
+
+def test_object_centric_frames_and_targets(demo_dir):
+    _, demos = demo_dir
+    action, anchor, goal = clouds(demos[1])
+    cd = make_sample(action, anchor, goal, "cd", gen(0), NA, NB)
+    cp = make_sample(action, anchor, goal, "cp", gen(0), NA, NB)
+    close(cd["action"].mean(0), torch.zeros(3))
+    close(cd["anchor"].mean(0), torch.zeros(3))
+    goal_in_anchor_frame = cd["goal"] - cd["anchor_mean"]
+    close(cd["target"], goal_in_anchor_frame - cd["action"])
+    close(cp["target"], goal_in_anchor_frame)
+
+
+def test_world_frame_variants_do_not_centre(demo_dir):
+    _, demos = demo_dir
+    action, anchor, goal = clouds(demos[1])
+    s = make_sample(action, anchor, goal, "cp_w", gen(0), NA, NB)
+    close(s["action_mean"], torch.zeros(3))
+    close(s["anchor_mean"], torch.zeros(3))
+    close(s["action"], action[s["action_idx"].numpy()])
+    close(s["target"], s["goal"])
+
+
+@pytest.mark.parametrize("variant", ["sd", "sp"])
+def test_scene_variants(demo_dir, variant):
+    _, demos = demo_dir
+    action, anchor, goal = clouds(demos[2])
+    s = make_sample(action, anchor, goal, variant, gen(0), NA, NB)
+    assert s["target"].shape == (NA + NB, 3)
+    scene = torch.cat([s["action"], s["anchor"]])
+    close(scene.mean(0), torch.zeros(3))
+    close(s["action_mean"], s["anchor_mean"])
+    anchor_target = s["target"][NA:]
+    close(anchor_target, torch.zeros(NB, 3) if variant == "sd" else s["anchor"])
+    close(to_world(s["target"][:NA], s, variant_spec(variant)), s["goal"])  # action rows alone also work
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_translating_the_scene(demo_dir, variant):
+    _, demos = demo_dir
+    action, anchor, goal = clouds(demos[0])
+    shift = np.array([3.0, -7.0, 2.0])
+    spec = variant_spec(variant)
+    for rotate in (False, True):
+        a = make_sample(action, anchor, goal, spec, gen(5), NA, NB, rotate=rotate)
+        b = make_sample(action + shift, anchor + shift, goal + shift, spec, gen(5), NA, NB, rotate=rotate)
+        assert torch.equal(a["action_idx"], b["action_idx"])
+        if spec.object_centric or spec.scene or not rotate:
+            close(b["goal"], a["goal"] + torch.tensor(shift, dtype=torch.float32))
+        same = {key: torch.allclose(a[key], b[key], atol=1e-5) for key in ("action", "anchor", "target")}
+        if spec.object_centric or spec.scene:
+            assert all(same.values()), same
+            close(b["anchor_mean"], a["anchor_mean"] + torch.tensor(shift, dtype=torch.float32))
+        else:
+            assert not same["action"] and not same["anchor"]
+            # A world-frame displacement ignores a common shift unless the scene turns about the origin.
+            assert same["target"] == (spec.target == "displacement" and not rotate)
+
+
+@pytest.mark.parametrize("pair", [("cd", "cd_nac"), ("cp", "cp_nac"), ("cd", "rd"), ("cp", "rp")])
+def test_nac_and_regression_samples_equal_cd_cp(demo_dir, pair):
+    """The dataset gives NAC and RD/RP the CD/CP items; the model ignores the action context for NAC."""
+    folder, _ = demo_dir
+    a, b = (DemoDataset(folder, v, num_action_points=NA, num_anchor_points=NB, seed=2) for v in pair)
+    for key, value in a[1].items():
+        assert torch.equal(value, b[1][key]), key
+    assert not variant_spec(pair[1]).action_context or not variant_spec(pair[1]).diffusion
+
+
+def test_batch_and_full_cloud_round_trip(demo_dir):
+    folder, demos = demo_dir
+    for variant in ("cd", "cp_w", "sp"):
+        spec = variant_spec(variant)
+        ds = DemoDataset(folder, variant, num_action_points=NA, num_anchor_points=NB, target_scale=4.0)
+        batch = next(iter(DataLoader(ds, batch_size=3)))
+        assert batch["target"].shape[0] == 3
+        close(to_world(batch["target"], batch, spec, 4.0), batch["goal"])
+
+        # Evaluation: the full action cloud, no goal; a stack of predictions for one scene.
+        action, anchor, goal = (torch.from_numpy(x) for x in clouds(demos[0]))
+        frames = frame_inputs(action, anchor, spec)
+        prediction = make_target(goal, frames, spec).expand(5, -1, -1)
+        world = to_world(prediction, frames, spec)
+        assert world.shape == (5, len(action), 3)
+        torch.testing.assert_close(world, goal.expand(5, -1, -1))
+
+
+def test_dataset_items(demo_dir):
+    folder, _ = demo_dir
+    ds = DemoDataset(folder, "cd", num_action_points=NA, num_anchor_points=NB)
+    assert len(ds) == 3
+    item = ds[0]
+    shapes = {key: tuple(value.shape) for key, value in item.items()}
+    assert shapes == {"action": (NA, 3), "anchor": (NB, 3), "action_mean": (3,), "anchor_mean": (3,),
+                      "target": (NA, 3), "goal": (NA, 3), "angle": (), "pivot": (3,), "action_idx": (NA,),
+                      "demo_index": ()}
+    assert all(v.dtype == torch.float32 for k, v in item.items() if k not in ("action_idx", "demo_index"))
+    assert len(set(item["action_idx"].tolist())) == NA
+    with pytest.raises(IndexError):
+        ds[3]
+
+
+def test_rotation_is_on_for_training_only(demo_dir):
+    folder, _ = demo_dir
+    kwargs = dict(num_action_points=NA, num_anchor_points=NB)
+    assert DemoDataset(folder, "cd", **kwargs)[0]["angle"] != 0
+    assert DemoDataset(folder, "cd", train=False, **kwargs)[0]["angle"] == 0
+    assert DemoDataset(folder, "cd", rotate=False, **kwargs)[0]["angle"] == 0
+
+
+def test_full_clouds_and_padding(demo_dir):
+    folder, demos = demo_dir
+    ds = DemoDataset(folder, "cd", num_action_points=None, num_anchor_points=100, train=False)
+    item = ds[0]
+    assert torch.equal(item["action_idx"], torch.arange(40))
+    assert item["anchor"].shape == (100, 3)  # 60 points, padded by repetition
+    close(item["goal"], clouds(demos[0])[2])
+
+
+def test_train_size_repeats_demos(demo_dir):
+    folder, _ = demo_dir
+    ds = DemoDataset(folder, "cd", num_action_points=NA, num_anchor_points=NB, train_size=10)
+    assert len(ds) == 10
+    assert [int(ds[i]["demo_index"]) for i in (0, 4, 9)] == [0, 1, 0]
+    with pytest.raises(UsageError):
+        DemoDataset(folder, "cd", train_size=0)
+
+
+def test_determinism(demo_dir):
+    folder, _ = demo_dir
+    make = lambda seed: DemoDataset(folder, "cp", num_action_points=NA, num_anchor_points=NB, seed=seed)  # noqa: E731
+    a, b = make(7), make(7)
+    b[2]  # the order of access does not matter
+    for key, value in a[1].items():
+        assert torch.equal(value, b[1][key]), key
+    assert not torch.equal(a[1]["target"], make(8)[1]["target"])
+    b.set_epoch(1)
+    assert a[1]["angle"] != b[1]["angle"]
+
+
+def test_empty_folder_and_bad_file(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(DemoError, match="empty") as err:
+        DemoDataset(empty, "cd")
+    assert "\n" not in str(err.value)
+    with pytest.raises(DemoError, match="no such demonstration folder"):
+        DemoDataset(tmp_path / "missing", "cd")
+    (empty / "demo_0.npz").write_bytes(b"not a zip file")
+    with pytest.raises(DemoError, match="demo_0.npz"):
+        DemoDataset(empty, "cd")
+
+
+def test_several_folders_and_split(tmp_path):
+    write_demos(tmp_path / "a", 6, seed=1)
+    write_demos(tmp_path / "b", 4, seed=2)
+    ds = DemoDataset([tmp_path / "a", tmp_path / "b"], "cd", num_action_points=NA, num_anchor_points=NB)
+    assert len(ds) == 10
+    train, val = split_demos(tmp_path / "a", val_fraction=0.34, seed=0)
+    assert len(val) == 2 and len(train) == 4
+    assert sorted(train + val) == sorted((tmp_path / "a").glob("demo_*.npz"))
+    assert split_demos(tmp_path / "a", 0.34, seed=0) == (train, val)
+    assert len(DemoDataset(val, "cd", num_action_points=NA, num_anchor_points=NB)) == 2
+    with pytest.raises(UsageError):
+        split_demos([train[0]], 0.5)
+    with pytest.raises(UsageError):
+        split_demos(tmp_path / "a", 1.0)
+
+
+def test_official_demos():
+    root = OFFICIAL / "hangproccloth-simple"
+    if not root.is_dir():
+        pytest.skip(f"official demonstrations not found at {OFFICIAL.resolve()}")
+    files = [root / "train" / "demo_0.npz", root / "val" / "demo_0.npz"]
+    for variant in ("cd", "sp"):
+        spec = variant_spec(variant)
+        ds = DemoDataset(files, variant)
+        batch = next(iter(DataLoader(ds, batch_size=2)))
+        assert batch["action"].shape == (2, 512, 3) and batch["anchor"].shape == (2, 512, 3)
+        assert torch.isfinite(batch["target"]).all()
+        close(to_world(batch["target"], batch, spec), batch["goal"])
