@@ -109,8 +109,9 @@ def to_world(prediction: torch.Tensor, frames: dict, spec: VariantSpec, target_s
     """
     action = frames["action"]
     n = action.shape[-2]
-    if prediction.shape[-2] < n or (prediction.shape[-2] != n and not spec.scene):
-        raise ValueError(f"prediction has {prediction.shape[-2]} points; the frames have {n} action points")
+    allowed = (n, n + frames["anchor"].shape[-2]) if spec.scene and "anchor" in frames else (n,)
+    if prediction.shape[-2] not in allowed:
+        raise ValueError(f"prediction has {prediction.shape[-2]} points; expected {' or '.join(map(str, allowed))}")
     goal = prediction[..., :n, :] / target_scale
     if spec.target == "displacement":
         goal = goal + action
