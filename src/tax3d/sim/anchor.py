@@ -77,3 +77,13 @@ def load_anchor(client: int, rot_z: float = 0.0, trans=(0.0, 0.0, 0.0)) -> tuple
         )
         ids.append(body)
     return ids[0], ids[1]
+
+
+def add_floor(client: int) -> int:
+    """The floor: a wide slab whose top face is the plane z = 0 (a box renders in the CPU renderer, a plane warns)."""
+    half = [100.0, 100.0, 0.5]
+    shape = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half, physicsClientId=client)
+    look = pybullet.createVisualShape(
+        pybullet.GEOM_BOX, halfExtents=half, rgbaColor=[0.85, 0.85, 0.8, 1], physicsClientId=client
+    )
+    return pybullet.createMultiBody(0, shape, look, basePosition=[0, 0, -0.5], physicsClientId=client)

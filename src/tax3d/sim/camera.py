@@ -7,7 +7,7 @@ import functools
 import numpy as np
 import pybullet
 
-from tax3d.sim.anchor import load_anchor, pose_points
+from tax3d.sim.anchor import add_floor, load_anchor, pose_points
 
 # REFERENCE.md, "HangProcCloth scene": the authors' camera, column-major, 200 x 200, tiny renderer.
 VIEW = [
@@ -52,9 +52,7 @@ def canonical_anchor_cloud(with_floor: bool) -> np.ndarray:
     client = pybullet.connect(pybullet.DIRECT)
     try:
         if with_floor:
-            plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client)
-            visual = pybullet.createVisualShape(pybullet.GEOM_PLANE, physicsClientId=client)
-            pybullet.createMultiBody(0, plane, visual, physicsClientId=client)
+            add_floor(client)
         ids = load_anchor(client)
         points = render_segmented_points(client, ids)
     finally:

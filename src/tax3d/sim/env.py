@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet
 
-from tax3d.sim.anchor import goal_position, load_anchor
+from tax3d.sim.anchor import add_floor, goal_position, load_anchor
 from tax3d.sim.camera import anchor_cloud
 from tax3d.sim.cloth import ClothMesh, build_cloth
 
@@ -86,8 +86,7 @@ class HangClothEnv:
         pybullet.setGravity(0, 0, -9.8, physicsClientId=c)
         pybullet.setTimeStep(TIMESTEP, physicsClientId=c)
         if self.floor:
-            plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=c)
-            pybullet.createMultiBody(0, plane, physicsClientId=c)
+            add_floor(c)
         self.anchor_ids = load_anchor(c, self.rot_z, self.trans)
         obj = os.path.join(self.tmpdir, "cloth.obj")
         with open(obj, "w") as f:

@@ -1,0 +1,228 @@
+"""`tax3d generate`: pseudo-expert demonstrations in the official layout, resumable, in worker processes."""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import sys
+import tempfile
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from tax3d.data.format import demo_index, is_valid_demo, list_demos, load_demo, save_demo
+from tax3d.errors import UsageError
+from tax3d.sim.cloth import validate_cloth_params
+from tax3d.sim.tasks import episode_params, get_split, get_task
+
+
+@dataclass
+class Args:
+    """Generate HangProcCloth demonstrations, or replay the cloths and anchor poses of existing demo files."""
+
+    task: str = "hangproccloth-simple"
+    """hangproccloth-simple, hangproccloth-unimodal or hangproccloth-multimodal"""
+    split: str = "train"
+    """train, unseen or ood (out-of-distribution anchor poses)"""
+    num: int | None = None
+    """number of demonstrations (with --replay: the first NUM files); default: the paper's size, or all files"""
+    out: Path = Path("data/demos")
+    """output folder for demo_N.npz files"""
+    workers: int = 1
+    """worker processes, each with its own PyBullet world and temporary mesh folder"""
+    replay: Path | None = None
+    """re-run the cloth parameters and anchor poses of the demo files in this folder"""
+    max_attempts: int = 5
+    """an index whose expert episode fails is resampled up to this many times"""
+    trajectories: bool = False
+    """also store per-step gripper positions, velocities, targets and downsampled clouds (traj_* keys)"""
+    render: Literal["none", "png", "gif"] = "none"
+    """write pictures of each episode under OUT/renders"""
+    render_every: int = 10
+    """environment steps between rendered frames"""
+    floor: bool = True
+    """a floor plane at z = 0 (replay decides this per file from its anchor cloud)"""
+
+
+@dataclass
+class Job:
+    names: list[str]  # output file names, one per demonstration of this cloth
+    holes: list[int]
+    task: str = ""
+    split: str = ""
+    cloth_index: int = 0
+    replay: dict | None = None  # cloth_params, rot_z, trans of a replayed file
+    floor: bool = True
+    max_attempts: int = 5
+    trajectories: bool = False
+    render: str = "none"
+    render_every: int = 10
+    out: str = ""
+
+
+@dataclass
+class JobResult:
+    names: list[str]
+    written: list[str] = field(default_factory=list)
+    episodes: int = 0
+    successes: int = 0
+    exploded: int = 0
+    seconds: float = 0.0
+
+
+_ENV = None
+
+
+def _env(floor: bool):
+    global _ENV
+    from tax3d.sim.env import HangClothEnv
+
+    if _ENV is None or _ENV.floor != floor:
+        if _ENV is not None:
+            _ENV.close()
+        _ENV = HangClothEnv(floor=floor)
+    return _ENV
+
+
+def run_job(job: Job) -> JobResult:
+    """Run the expert on one cloth (every hole of a multimodal pair); save only when all its episodes succeed."""
+    from tax3d.sim.episode import episode_to_demo, expert_policy, run_episode
+    from tax3d.sim.render import render_frame, save_frames
+
+    env = _env(job.floor)
+    result = JobResult(job.names)
+    attempts = 1 if job.replay is not None else job.max_attempts
+    for attempt in range(attempts):
+        if job.replay is not None:
+            cloth, rot_z, trans = job.replay["cloth_params"], job.replay["rot_z"], job.replay["trans"]
+        else:
+            params = episode_params(get_task(job.task), get_split(job.split), job.cloth_index, attempt)
+            cloth, rot_z, trans = params.cloth_params, params.rot_z, params.trans
+        episodes = []
+        for hole in job.holes:
+            ep = run_episode(
+                env, cloth, rot_z, trans, expert_policy(hole), trajectory=job.trajectories,
+                frame_every=job.render_every if job.render != "none" else 0, render=render_frame,
+            )  # fmt: skip
+            result.episodes += 1
+            result.seconds += ep.seconds
+            result.exploded += ep.exploded
+            # A demonstration is labelled with the hole the expert aimed at: that hole itself must pass.
+            ok = ep.success and ep.checks["holes"][hole]["centroid"] and ep.checks["holes"][hole]["polygon"]
+            result.successes += ok
+            episodes.append((ep, ok))
+        if all(ok for _, ok in episodes):
+            for name, (ep, _) in zip(job.names, episodes):
+                save_demo(Path(job.out) / name, episode_to_demo(ep))
+                if job.render != "none" and ep.frames:
+                    save_frames(ep.frames, Path(job.out) / "renders" / Path(name).stem, job.render)
+                result.written.append(name)
+            break
+    return result
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out}: exists and is not a folder; expected a folder for demo_N.npz files")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".probe-"):
+            pass
+    except OSError as err:
+        raise UsageError(f"--out {out}: cannot write there ({err.strerror}); expected a writable folder") from None
+
+
+def _replay_jobs(folder: Path, args: Args) -> list[Job]:
+    jobs = []
+    paths = list_demos(folder)
+    for path in paths if args.num is None else paths[: max(args.num, 0)]:
+        demo = load_demo(path)
+        cloth = validate_cloth_params(demo["deform_params"], where=str(path))
+        rot_z, trans = float(demo["rot"][2]), np.asarray(demo["trans"], dtype=np.float64)
+        # The official train split was rendered without a floor: its anchor cloud reaches below the anchor's base.
+        floor = bool(demo["anchor_pc"][:, 2].min() >= trans[2] - 0.05)
+        hole = demo_index(path) % cloth["num_holes"]
+        replay = {"cloth_params": cloth, "rot_z": rot_z, "trans": trans}
+        jobs.append(Job([path.name], [hole], replay=replay, floor=floor))
+    return jobs
+
+
+def _generate_jobs(args: Args) -> list[Job]:
+    task, split = get_task(args.task), get_split(args.split)
+    num = task.sizes[split.name] if args.num is None else args.num
+    if num < 0:
+        raise UsageError(f"--num {num}: expected a non-negative number of demonstrations")
+    per = task.demos_per_cloth
+    jobs = []
+    for c in range(math.ceil(num / per)):
+        idx = [i for i in range(c * per, (c + 1) * per) if i < num]
+        jobs.append(Job([f"demo_{i}.npz" for i in idx], [i - c * per for i in idx], args.task, args.split, c))
+    return jobs
+
+
+def generate(args: Args, progress: bool = True) -> dict:
+    """Plan, skip what is already there, run the rest; returns the summary statistics."""
+    if args.workers < 1:
+        raise UsageError(f"--workers {args.workers}: expected at least 1")
+    if args.max_attempts < 1:
+        raise UsageError(f"--max-attempts {args.max_attempts}: expected at least 1")
+    if args.replay is not None:
+        jobs = _replay_jobs(Path(args.replay), args)
+    else:
+        jobs = _generate_jobs(args)
+        for job in jobs:
+            job.floor = args.floor
+    _check_out(Path(args.out))
+    for job in jobs:
+        job.out, job.max_attempts, job.trajectories = str(args.out), args.max_attempts, args.trajectories
+        job.render, job.render_every = args.render, max(1, args.render_every)
+    todo = [j for j in jobs if not all(is_valid_demo(Path(args.out) / n) for n in j.names)]
+    stats = {"planned": sum(len(j.names) for j in jobs), "skipped": sum(len(j.names) for j in jobs if j not in todo)}
+    results = _run(todo, args.workers, progress)
+    stats.update(
+        written=sum(len(r.written) for r in results),
+        failed=[n for r in results for n in r.names if n not in r.written],
+        episodes=sum(r.episodes for r in results),
+        successes=sum(r.successes for r in results),
+        exploded=sum(r.exploded for r in results),
+        seconds=sum(r.seconds for r in results),
+    )
+    stats["success_rate"] = stats["successes"] / stats["episodes"] if stats["episodes"] else float("nan")
+    stats["seconds_per_episode"] = stats["seconds"] / stats["episodes"] if stats["episodes"] else float("nan")
+    return stats
+
+
+def _run(jobs: list[Job], workers: int, progress: bool) -> list[JobResult]:
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(jobs), desc="episodes", unit="cloth", disable=not progress, file=sys.stderr)
+    results = []
+    if workers == 1:
+        for job in jobs:
+            results.append(run_job(job))
+            bar.update()
+    else:
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            for future in as_completed([pool.submit(run_job, j) for j in jobs]):
+                results.append(future.result())
+                bar.update()
+    bar.close()
+    return results
+
+
+def run(args: Args) -> int:
+    stats = generate(args)
+    rate = stats["success_rate"]
+    print(
+        f"expert success {stats['successes']}/{stats['episodes']} episodes ({rate:.0%}), "
+        f"{stats['seconds_per_episode']:.1f} s per episode, {stats['exploded']} exploded; "
+        f"wrote {stats['written']} demos to {args.out} ({stats['skipped']} already there"
+        + (f", {len(stats['failed'])} failed: {' '.join(stats['failed'][:5])}" if stats["failed"] else "")
+        + ")"
+    )
+    return 0 if not stats["failed"] else 1
+
