@@ -153,6 +153,19 @@ def test_respaced_step_matches_diffusers_custom_timesteps(diffusion):
         torch.testing.assert_close(mine, ref.prev_sample.transpose(1, 2), rtol=1e-4, atol=1e-4)
 
 
+def test_ddim_step_matches_diffusers(diffusion):
+    diffusers = pytest.importorskip("diffusers")
+    sched = diffusers.DDIMScheduler(num_train_timesteps=T, trained_betas=diffusion.betas.tolist(),
+                                    clip_sample=False, set_alpha_to_one=True)
+    sched.set_timesteps(T)
+    torch.manual_seed(7)
+    for step in [99, 50, 1, 0]:
+        x_t, eps, v = torch.randn(2, 5, 3), torch.randn(2, 5, 3), torch.rand(2, 5, 3) * 2 - 1
+        mine = diffusion.ddim_sample(lambda x, t: torch.cat([eps, v], -1), x_t, torch.full((2,), step))["sample"]
+        ref = sched.step(eps.transpose(1, 2), step, x_t.transpose(1, 2), eta=0.0).prev_sample.transpose(1, 2)
+        torch.testing.assert_close(mine, ref, rtol=1e-5, atol=1e-5)
+
+
 @pytest.mark.parametrize("learn_sigma", [True, False])
 def test_samplers_recover_x0_with_oracle_model(learn_sigma):
     torch.manual_seed(4)
