@@ -45,6 +45,8 @@ class Args:
     """environment steps between rendered frames"""
     floor: bool = True
     """a floor plane at z = 0 (replay decides this per file from its anchor cloud)"""
+    steps: int = 300
+    """environment steps of manipulation per episode (the paper's episodes: 300)"""
 
 
 @dataclass
@@ -60,6 +62,7 @@ class Job:
     trajectories: bool = False
     render: str = "none"
     render_every: int = 10
+    steps: int = 300
     out: str = ""
 
 
@@ -104,7 +107,7 @@ def run_job(job: Job) -> JobResult:
         episodes = []
         for hole in job.holes:
             ep = run_episode(
-                env, cloth, rot_z, trans, expert_policy(hole), trajectory=job.trajectories,
+                env, cloth, rot_z, trans, expert_policy(hole), steps=job.steps, trajectory=job.trajectories,
                 frame_every=job.render_every if job.render != "none" else 0, render=render_frame,
             )  # fmt: skip
             result.episodes += 1
@@ -167,6 +170,8 @@ def generate(args: Args, progress: bool = True) -> dict:
     """Plan, skip what is already there, run the rest; returns the summary statistics."""
     if args.workers < 1:
         raise UsageError(f"--workers {args.workers}: expected at least 1")
+    if args.steps < 1:
+        raise UsageError(f"--steps {args.steps}: expected at least 1")
     if args.max_attempts < 1:
         raise UsageError(f"--max-attempts {args.max_attempts}: expected at least 1")
     if args.replay is not None:
@@ -178,7 +183,7 @@ def generate(args: Args, progress: bool = True) -> dict:
     _check_out(Path(args.out))
     for job in jobs:
         job.out, job.max_attempts, job.trajectories = str(args.out), args.max_attempts, args.trajectories
-        job.render, job.render_every = args.render, max(1, args.render_every)
+        job.render, job.render_every, job.steps = args.render, max(1, args.render_every), args.steps
     todo = [j for j in jobs if not all(is_valid_demo(Path(args.out) / n) for n in j.names)]
     stats = {"planned": sum(len(j.names) for j in jobs), "skipped": sum(len(j.names) for j in jobs if j not in todo)}
     results = _run(todo, args.workers, progress)
