@@ -100,6 +100,10 @@ class HangClothEnv:
             **SOFT_BODY,
         )
         pybullet.setPhysicsEngineParameter(sparseSdfVoxelSize=0.25, physicsClientId=c)
+        pybullet.changeVisualShape(
+            self.cloth_id, -1, rgbaColor=[0.95, 0.95, 1.0, 1], flags=pybullet.VISUAL_SHAPE_DOUBLE_SIDED,
+            physicsClientId=c,
+        )
         vertices = self.cloth_vertices()
         if len(vertices) != self.mesh.num_vertices:
             raise RuntimeError(f"soft body has {len(vertices)} vertices, mesh file {self.mesh.num_vertices}")

@@ -74,10 +74,10 @@ def run_episode(
             targets = policy.targets(state.cloth)
             if record is not None:
                 record.add(state, targets)
-            if frame_every and render is not None and t % frame_every == 0:
-                episode.frames.append(render(env))
             env.step(targets)
             state = env.state()
+            if frame_every and render is not None and t % frame_every == 0:
+                episode.frames.append(render(env))
         episode.goal_pc = state.cloth.copy()
         env.release()
         episode.released_pc = env.state().cloth.copy()

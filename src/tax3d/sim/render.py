@@ -14,11 +14,13 @@ FRAME_SIZE = (400, 300)
 def render_frame(env, size=FRAME_SIZE) -> np.ndarray:
     """One RGB frame (H, W, 3) of the scene, looking at the cloth and the anchor from the side."""
     goal = env.goal()
-    target = (goal + np.array([0.0, 5.0, 8.0])) / 2
+    target = (goal + np.array([0.0, 5.0, 7.0])) / 2
+    target[2] = 6.5
+    spread = np.linalg.norm(goal[:2] - np.array([0.0, 5.0]))
     view = pybullet.computeViewMatrixFromYawPitchRoll(
-        target.tolist(), distance=22.0, yaw=-60.0, pitch=-20.0, roll=0.0, upAxisIndex=2
+        target.tolist(), distance=11.0 + 0.8 * spread, yaw=50.0, pitch=-15.0, roll=0.0, upAxisIndex=2
     )
-    projection = pybullet.computeProjectionMatrixFOV(fov=60.0, aspect=size[0] / size[1], nearVal=0.1, farVal=100.0)
+    projection = pybullet.computeProjectionMatrixFOV(fov=50.0, aspect=size[0] / size[1], nearVal=0.1, farVal=200.0)
     _, _, rgba, _, _ = pybullet.getCameraImage(
         size[0], size[1], view, projection, renderer=pybullet.ER_TINY_RENDERER, physicsClientId=env.client
     )

@@ -1,0 +1,62 @@
+"""Simulation speed: steps per second, seconds per episode on one worker, and the 2-worker throughput ratio.
+
+Prints one JSON object. Targets (issue: HangProcCloth benchmark): at most 10 s per episode on one core and a
+2-worker / 1-worker throughput ratio of at least 1.7.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tax3d.sim.cloth import SIMPLE_CLOTH
+from tax3d.sim.env import SIM_STEPS_PER_ACTION, HangClothEnv
+from tax3d.sim.generate import Args, generate
+
+
+def sim_steps_per_second(env_steps: int = 100) -> float:
+    with HangClothEnv() as env:
+        state = env.reset(SIMPLE_CLOTH, 0.3, [2.0, -4.0, 0.0])
+        targets = state.grippers + np.array([0.0, -1.0, 0.5])
+        start = time.perf_counter()
+        for _ in range(env_steps):
+            env.step(targets)
+        return env_steps * SIM_STEPS_PER_ACTION / (time.perf_counter() - start)
+
+
+def episodes_wall(task: str, num: int, workers: int) -> tuple[float, dict]:
+    with tempfile.TemporaryDirectory() as out:
+        start = time.perf_counter()
+        stats = generate(Args(task=task, split="unseen", num=num, out=Path(out), workers=workers, max_attempts=1),
+                         progress=False)
+        return time.perf_counter() - start, stats
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="hangproccloth-simple")
+    parser.add_argument("--episodes", type=int, default=2, help="episodes per worker")
+    args = parser.parse_args()
+    steps = sim_steps_per_second()
+    wall1, stats1 = episodes_wall(args.task, args.episodes, 1)
+    wall2, stats2 = episodes_wall(args.task, 2 * args.episodes, 2)
+    print(json.dumps({
+        "task": args.task,
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
+        "sim_steps_per_second": round(steps, 1),
+        "seconds_per_episode_1_worker": round(wall1 / stats1["episodes"], 2),
+        "episode_seconds_in_worker": round(stats1["seconds_per_episode"], 2),
+        "throughput_ratio_2_workers": round((stats2["episodes"] / wall2) / (stats1["episodes"] / wall1), 3),
+        "episodes": [stats1["episodes"], stats2["episodes"]],
+    }, indent=2))
+
+
+if __name__ == "__main__":
+    main()

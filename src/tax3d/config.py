@@ -1,0 +1,216 @@
+"""Typed configuration: model, diffusion, data and training settings, and the named presets `paper` and `cpu`.
+
+A run's configuration is a `Config`; presets are complete configs, and the command line overrides single fields
+with dotted options (`--model.variant cp --train.steps 2000`). Every run writes its resolved config as JSON next
+to its output, and a checkpoint's `config.json` is the same JSON.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import typing
+from dataclasses import dataclass, field
+from typing import Annotated, Literal, Optional
+
+import tyro
+
+from tax3d.data.dataset import variant_spec
+from tax3d.errors import UsageError
+
+
+@dataclass
+class ModelConfig:
+    """The predictor: which variant, and the size of its DiT."""
+
+    variant: str = "cd"
+    """cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd or rp (paper Sec. 4; CD-W and cd_w are the same)"""
+    hidden_size: int = 128
+    depth: int = 5
+    num_heads: int = 4
+    mlp_ratio: float = 4.0
+
+
+@dataclass
+class DiffusionConfig:
+    """The diffusion process (REFERENCE.md, Diffusion) and the default sampler of `predict`."""
+
+    num_timesteps: int = 100
+    learn_sigma: bool = True
+    sample_steps: int = 100
+    """denoising steps at prediction: fewer than num_timesteps respaces the schedule"""
+    sampler: Literal["ddpm", "ddim"] = "ddpm"
+
+
+@dataclass
+class DataConfig:
+    """Demonstration folders and how samples are drawn from them (REFERENCE.md, Training)."""
+
+    train: tuple[str, ...] = ()
+    """training demo folders (or demo files)"""
+    val: tuple[str, ...] = ()
+    """validation demo folders; none: no validation and no best checkpoint"""
+    num_action_points: int = 512
+    num_anchor_points: int = 512
+    train_size: int = 400
+    """samples per epoch (demos are repeated)"""
+    target_scale: float = 1.0
+    """the network's target is the variant's target times this"""
+    rotate: bool = True
+    """rotate anchor and goal about z by U(0, 2 pi) in training"""
+
+
+@dataclass
+class TrainConfig:
+    """The optimiser, schedule, validation and bookkeeping of a training run."""
+
+    lr: float = 1e-4
+    weight_decay: float = 1e-5
+    warmup_steps: int = 100
+    batch_size: int = 16
+    grad_clip: float = 1.0
+    steps: int = 500_000
+    seed: int = 42
+    val_every: int = 5000
+    """validate and write last/ every this many steps (and at the end)"""
+    val_samples: int = 5
+    """samples per validation demo for the min-of-samples RMSE"""
+    val_demos: int = 0
+    """validate on the first this many val demos (0: all)"""
+    ema: float = 0.0
+    """decay of an exponential moving average of the weights (0: off); checkpoints then hold the average"""
+    num_workers: int = 0
+    threads: int = 0
+    """torch CPU threads (0: torch's default)"""
+    device: str = "auto"
+    """auto (cuda when available), cpu or cuda"""
+
+
+@dataclass
+class Config:
+    model: ModelConfig = field(default_factory=ModelConfig)
+    diffusion: DiffusionConfig = field(default_factory=DiffusionConfig)
+    data: DataConfig = field(default_factory=DataConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+
+
+def paper() -> Config:
+    """The paper's settings (App. B; REFERENCE.md, Model / Diffusion / Training): ~500k steps, for a GPU."""
+    return Config()
+
+
+def cpu() -> Config:
+    """Settings that learn quickly on a 2-core CPU; each difference from `paper` is measured in docs/training.md."""
+    return Config(
+        model=ModelConfig(hidden_size=64, depth=3, num_heads=4),
+        data=DataConfig(num_action_points=256, num_anchor_points=256, target_scale=0.25, rotate=False),
+        train=TrainConfig(lr=1e-3, warmup_steps=100, batch_size=16, steps=4000, val_every=500, val_samples=5,
+                          val_demos=0, ema=0.0, threads=2),
+    )
+
+
+PRESETS = {"paper": paper, "cpu": cpu}
+
+
+def preset(name: str) -> Config:
+    if name not in PRESETS:
+        raise UsageError(f"--preset {name!r}: unknown preset; expected one of {', '.join(PRESETS)}")
+    return PRESETS[name]()
+
+
+# --- serialisation ---------------------------------------------------------------------------------------------
+
+_SECTIONS = {"model": ModelConfig, "diffusion": DiffusionConfig, "data": DataConfig, "train": TrainConfig}
+
+
+def to_dict(config: Config) -> dict:
+    return dataclasses.asdict(config)
+
+
+def from_dict(data: dict, where: str = "config") -> Config:
+    """A Config from its JSON dict; unknown sections or fields are an error naming them."""
+    if not isinstance(data, dict):
+        raise UsageError(f"{where}: expected a JSON object with sections {', '.join(_SECTIONS)}")
+    unknown = set(data) - set(_SECTIONS)
+    if unknown:
+        raise UsageError(f"{where}: unknown sections {sorted(unknown)}; expected {', '.join(_SECTIONS)}")
+    sections = {}
+    for name, cls in _SECTIONS.items():
+        values = dict(data.get(name, {}))
+        names = {f.name for f in dataclasses.fields(cls)}
+        if set(values) - names:
+            raise UsageError(f"{where}: unknown fields {sorted(set(values) - names)} in section '{name}'")
+        for key, value in values.items():
+            if isinstance(value, list):
+                values[key] = tuple(value)
+        sections[name] = cls(**values)
+    return validate(Config(**sections), where)
+
+
+def save(config: Config, path) -> None:
+    from pathlib import Path
+
+    Path(path).write_text(json.dumps(to_dict(config), indent=2) + "\n")
+
+
+def load(path) -> Config:
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise UsageError(f"{path}: unreadable config ({err})") from None
+    return from_dict(data, str(path))
+
+
+def validate(config: Config, where: str = "config") -> Config:
+    """Normalise the variant name and check values that would otherwise fail deep inside training."""
+    config.model.variant = variant_spec(config.model.variant).name
+    checks = [
+        (config.model.hidden_size % max(config.model.num_heads, 1) == 0 and config.model.num_heads > 0,
+         "model.hidden_size must be a multiple of model.num_heads"),
+        (config.model.depth >= 1, "model.depth must be at least 1"),
+        (1 <= config.diffusion.sample_steps <= config.diffusion.num_timesteps,
+         "diffusion.sample_steps must lie in [1, diffusion.num_timesteps]"),
+        (config.data.num_action_points >= 1 and config.data.num_anchor_points >= 1,
+         "data.num_action_points and data.num_anchor_points must be positive"),
+        (config.data.target_scale > 0, "data.target_scale must be positive"),
+        (config.train.batch_size >= 1, "train.batch_size must be positive"),
+        (config.train.steps >= 1, "train.steps must be positive"),
+        (0.0 <= config.train.ema < 1.0, "train.ema must lie in [0, 1)"),
+        (config.train.val_samples >= 1, "train.val_samples must be positive"),
+    ]
+    for ok, message in checks:
+        if not ok:
+            raise UsageError(f"{where}: {message}")
+    return config
+
+
+# --- command-line overrides ------------------------------------------------------------------------------------
+
+
+def _overrides_of(cls: type) -> type:
+    """A dataclass with cls's fields, each optional and None by default: None keeps the preset's value."""
+    hints = typing.get_type_hints(cls)
+    fields = []
+    for f in dataclasses.fields(cls):
+        hint = Annotated[Optional[hints[f.name]], tyro.conf.arg(help_behavior_hint="(default: the preset's)")]
+        fields.append((f.name, hint, field(default=None)))
+    return dataclasses.make_dataclass(f"{cls.__name__}Overrides", fields, frozen=True)
+
+
+ModelOverrides = _overrides_of(ModelConfig)
+DiffusionOverrides = _overrides_of(DiffusionConfig)
+DataOverrides = _overrides_of(DataConfig)
+TrainOverrides = _overrides_of(TrainConfig)
+
+
+def apply_overrides(config: Config, **sections) -> Config:
+    """config with every non-None field of the given override sections (model=..., data=...) replaced."""
+    replaced = {}
+    for name, overrides in sections.items():
+        current = getattr(config, name)
+        values = {k: v for k, v in dataclasses.asdict(overrides).items() if v is not None}
+        replaced[name] = dataclasses.replace(current, **values)
+    return dataclasses.replace(config, **replaced)
