@@ -1,0 +1,49 @@
+"""Pseudo-expert success rates per task and split, one attempt per episode; prints one JSON object.
+
+Each (task, split) runs the first --num episodes of that split's seeds with --max-attempts 1, so the rate is
+successes / episodes (multimodal: both holes of each cloth are attempted, 2 episodes per cloth).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import sys
+import tempfile
+from pathlib import Path
+
+from tax3d.sim.generate import Args, generate
+
+TASKS = ("hangproccloth-simple", "hangproccloth-unimodal", "hangproccloth-multimodal")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", default=",".join(TASKS))
+    parser.add_argument("--splits", default="unseen,ood")
+    parser.add_argument("--num", type=int, default=40)
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    report = {
+        "command": "python " + " ".join(sys.argv),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "date": datetime.date.today().isoformat(),
+        "rates": [],
+    }
+    for task in args.tasks.split(","):
+        for split in args.splits.split(","):
+            with tempfile.TemporaryDirectory() as out:
+                a = Args(task=task, split=split, num=args.num, out=Path(out), workers=args.workers, max_attempts=1)
+                stats = generate(a, progress=False)
+            row = {k: stats[k] for k in ("episodes", "successes", "exploded", "success_rate", "seconds_per_episode")}
+            report["rates"].append({"task": task, "split": split, **row})
+            print(json.dumps(report["rates"][-1]), file=sys.stderr, flush=True)
+    print(json.dumps(report, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
