@@ -7,9 +7,11 @@ Prints one JSON object. Targets (issue: HangProcCloth benchmark): at most 10 s p
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
 import platform
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -48,8 +50,10 @@ def main() -> None:
     wall1, stats1 = episodes_wall(args.task, args.episodes, 1)
     wall2, stats2 = episodes_wall(args.task, 2 * args.episodes, 2)
     print(json.dumps({
+        "command": "python " + " ".join(sys.argv),
         "task": args.task,
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "date": datetime.date.today().isoformat(),
         "sim_steps_per_second": round(steps, 1),
         "seconds_per_episode_1_worker": round(wall1 / stats1["episodes"], 2),
         "episode_seconds_in_worker": round(stats1["seconds_per_episode"], 2),

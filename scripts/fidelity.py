@@ -9,6 +9,9 @@ our goal cloud to the official goal (action_pc + flow).
 from __future__ import annotations
 
 import argparse
+import datetime
+import os
+import platform
 import json
 import sys
 import tempfile
@@ -79,7 +82,11 @@ def main() -> int:
     if not args.official.is_dir():
         print(f"fidelity: error: {args.official}: official demonstrations not found", file=sys.stderr)
         return 2
-    report = {}
+    report = {
+        "command": "python " + " ".join(sys.argv),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "date": datetime.date.today().isoformat(),
+    }
     for split in ("train", "val"):
         folder = args.official / split
         report[split] = reset_checks(folder)
