@@ -77,6 +77,8 @@ class TrainConfig:
     """samples per validation demo for the min-of-samples RMSE"""
     val_demos: int = 0
     """validate on the first this many val demos (0: all)"""
+    time_limit: float = 0.0
+    """stop after this many minutes of training, as if at the last step (0: no limit)"""
     ema: float = 0.0
     """decay of an exponential moving average of the weights (0: off); checkpoints then hold the average"""
     num_workers: int = 0

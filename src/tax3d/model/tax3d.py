@@ -1,0 +1,251 @@
+"""The TAX3D predictor: a variant's network and diffusion, its training loss, sampling, and a small policy API.
+
+    model = Tax3D.from_pretrained("checkpoints/tax3d-cd-official-simple")
+    goals = model.predict(action_points, anchor_points, num_samples=5)   # (5, N, 3), world frame
+
+A checkpoint is a directory with `config.json` (a `tax3d.config.Config`) and `model.safetensors`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn as nn
+from safetensors.torch import load_file, save_file
+
+from tax3d import config as cfg
+from tax3d.data.dataset import frame_inputs, to_world, variant_spec
+from tax3d.errors import UsageError
+from tax3d.geometry import farthest_point_sample
+from tax3d.model.diffusion import GaussianDiffusion, linear_betas
+from tax3d.model.dit import DiTPointCloudCross, DiTPointCloudScene
+
+CONFIG_NAME = "config.json"
+WEIGHTS_NAME = "model.safetensors"
+
+
+class CheckpointError(UsageError):
+    """A checkpoint directory that is missing, incomplete, or does not match its configuration."""
+
+
+def build_network(config: cfg.Config) -> nn.Module:
+    spec = variant_spec(config.model.variant)
+    m = config.model
+    learn_sigma = spec.diffusion and config.diffusion.learn_sigma
+    size = dict(hidden_size=m.hidden_size, depth=m.depth, num_heads=m.num_heads, mlp_ratio=m.mlp_ratio)
+    if spec.scene:
+        return DiTPointCloudScene(learn_sigma=learn_sigma, time_conditioning=spec.diffusion, **size)
+    return DiTPointCloudCross(learn_sigma=learn_sigma, action_context=spec.action_context,
+                              time_conditioning=spec.diffusion, **size)
+
+
+class Tax3D(nn.Module):
+    """A TAX3D variant (CD, CP, -W, NAC, SD/SP, RD/RP): network + diffusion, in the variant's frames."""
+
+    def __init__(self, config: cfg.Config):
+        super().__init__()
+        self.config = cfg.validate(config)
+        self.spec = variant_spec(config.model.variant)
+        self.net = build_network(config)
+        self.learn_sigma = self.spec.diffusion and config.diffusion.learn_sigma
+        self.diffusion = GaussianDiffusion(linear_betas(config.diffusion.num_timesteps), learn_sigma=self.learn_sigma)
+
+    # --- the network in the variant's frames ---------------------------------------------------------------------
+
+    def model_fn(self, action: torch.Tensor, anchor: torch.Tensor):
+        """model_fn(x_t, t) for the diffusion: action (B, N, 3) and anchor (B, M, 3) in the variant's frames."""
+        if self.spec.scene:
+            scene = torch.cat([action, anchor], dim=1)  # (B, N + M, 3)
+            return lambda x, t: self.net(x, t, scene)
+        context = action if self.spec.action_context else None
+        return lambda x, t: self.net(x, t, context, anchor)
+
+    def regress(self, action: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
+        """RD/RP: one forward pass; the network's noised input is zeros, its output the target (B, N, 3)."""
+        return self.model_fn(action, anchor)(torch.zeros_like(action), None)
+
+    def loss(self, batch: dict, t: torch.Tensor | None = None, noise: torch.Tensor | None = None) -> dict:
+        """Mean training losses of a batch from `DemoDataset`: loss, mse, vb (scalars).
+
+        Diffusion variants: the hybrid loss (REFERENCE.md, Diffusion); t and noise default to fresh draws.
+        RD/RP: the MSE of one regression pass, vb = 0. SD/SP diffuse the scene target (action and anchor rows)."""
+        action, anchor, target = batch["action"], batch["anchor"], batch["target"]
+        if not self.spec.diffusion:
+            mse = ((self.regress(action, anchor) - target) ** 2).mean()
+            return {"loss": mse, "mse": mse, "vb": torch.zeros_like(mse)}
+        if t is None:
+            t = self.diffusion.sample_timesteps(target.shape[0], target.device)
+        losses = self.diffusion.training_losses(self.model_fn(action, anchor), target, t, noise)
+        return {k: v.mean() for k, v in losses.items()}
+
+    @torch.no_grad()
+    def sample(self, action: torch.Tensor, anchor: torch.Tensor, steps: int | None = None, sampler: str | None = None,
+               generator: torch.Generator | None = None, return_trajectory: bool = False):
+        """Model outputs (B, N, 3) in the variant's frame for inputs in that frame (B, N, 3), (B, M, 3).
+
+        With return_trajectory, also (S + 1, B, N, 3): x_T, ..., x_0 (one entry for RD/RP)."""
+        if not self.spec.diffusion:
+            out = self.regress(action, anchor)
+            return (out, out[None]) if return_trajectory else out
+        steps = self.config.diffusion.sample_steps if steps is None else int(steps)
+        sampler = self.config.diffusion.sampler if sampler is None else sampler
+        T = self.diffusion.num_timesteps
+        if not 1 <= steps <= T:
+            raise UsageError(f"--steps {steps}: expected a number of denoising steps in [1, {T}]")
+        if sampler not in ("ddpm", "ddim"):
+            raise UsageError(f"--sampler {sampler!r}: expected ddpm or ddim")
+        diffusion = self.diffusion if steps == T else self.diffusion.respace(steps)
+        n = action.shape[1] + (anchor.shape[1] if self.spec.scene else 0)
+        shape = (action.shape[0], n, 3)
+        loop = diffusion.p_sample_loop if sampler == "ddpm" else diffusion.ddim_sample_loop
+        out = loop(self.model_fn(action, anchor), shape, generator=generator, device=action.device,
+                   return_trajectory=return_trajectory)
+        if return_trajectory:
+            return out[0][:, : action.shape[1]], out[1][:, :, : action.shape[1]]
+        return out[:, : action.shape[1]]
+
+    # --- the policy API --------------------------------------------------------------------------------------------
+
+    @property
+    def device(self) -> torch.device:
+        return next(self.parameters()).device
+
+    def _points(self, points, name: str) -> torch.Tensor:
+        points = torch.as_tensor(np.asarray(points) if not isinstance(points, torch.Tensor) else points)
+        if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] == 0:
+            raise UsageError(f"{name} has shape {tuple(points.shape)}; expected (N, 3) with N > 0")
+        if not torch.isfinite(points).all():
+            raise UsageError(f"{name} contains NaN or infinite values")
+        return points.to(device=self.device, dtype=torch.float32)
+
+    def _frames(self, action_points, anchor_points, generator: torch.Generator) -> dict:
+        action = self._points(action_points, "action_points")
+        anchor = self._points(anchor_points, "anchor_points")
+        k = self.config.data.num_anchor_points
+        if anchor.shape[0] > k:
+            anchor = anchor[farthest_point_sample(anchor, k, start=generator)]
+        frames = frame_inputs(action.double(), anchor.double(), self.spec)
+        return {key: value.float() for key, value in frames.items()}
+
+    def _generator(self, generator: torch.Generator | None, seed: int | None) -> torch.Generator:
+        if generator is not None:
+            return generator
+        generator = torch.Generator(device=self.device)
+        generator.manual_seed(int(seed) if seed is not None else int(torch.randint(2**62, ()).item()))
+        return generator
+
+    @torch.no_grad()
+    def predict(self, action_points, anchor_points, num_samples: int = 1, steps: int | None = None,
+                sampler: str | None = None, generator: torch.Generator | None = None, seed: int | None = None,
+                return_trajectory: bool = False):
+        """World-frame goal clouds (num_samples, N, 3) for action (N, 3) and anchor (M, 3) world points.
+
+        Any N works (the whole cloth, as in policy evaluation); the anchor is downsampled by FPS to the trained
+        number of points. The samples are denoised together, in one batch. numpy in, numpy out; tensors in,
+        tensors out. With return_trajectory, also the denoising trajectory in the world frame, (S + 1, num_samples,
+        N, 3). `seed` makes a fresh generator; `generator` is used as given.
+        """
+        as_numpy = not isinstance(action_points, torch.Tensor)
+        generator = self._generator(generator, seed)
+        frames = self._frames(action_points, anchor_points, generator)
+        out = self.sample(frames["action"].expand(num_samples, -1, -1), frames["anchor"].expand(num_samples, -1, -1),
+                          steps, sampler, generator, return_trajectory)
+        scale = self.config.data.target_scale
+        if return_trajectory:
+            goals, trajectory = to_world(out[0], frames, self.spec, scale), to_world(out[1], frames, self.spec, scale)
+            return (goals.cpu().numpy(), trajectory.cpu().numpy()) if as_numpy else (goals, trajectory)
+        goals = to_world(out, frames, self.spec, scale)
+        return goals.cpu().numpy() if as_numpy else goals
+
+    @torch.no_grad()
+    def predict_scenes(self, scenes, num_samples: int = 1, steps: int | None = None, sampler: str | None = None,
+                       seed: int = 0, batch_scenes: int = 8) -> list[np.ndarray]:
+        """predict for many (action_points, anchor_points) scenes: a list of (num_samples, N_i, 3) numpy arrays.
+
+        Scenes with the same number of action points are denoised together, batch_scenes at a time."""
+        generator = self._generator(None, seed)
+        frames = [self._frames(action, anchor, generator) for action, anchor in scenes]
+        results: list[np.ndarray | None] = [None] * len(frames)
+        by_size: dict[tuple, list[int]] = {}
+        for i, f in enumerate(frames):
+            by_size.setdefault((f["action"].shape[0], f["anchor"].shape[0]), []).append(i)
+        scale = self.config.data.target_scale
+        for indices in by_size.values():
+            for start in range(0, len(indices), batch_scenes):
+                chunk = indices[start:start + batch_scenes]
+                stacked = {k: torch.stack([frames[i][k] for i in chunk]).repeat_interleave(num_samples, 0)
+                           for k in frames[chunk[0]]}  # (C * K, ...)
+                out = self.sample(stacked["action"], stacked["anchor"], steps, sampler, generator)
+                goals = to_world(out, stacked, self.spec, scale).reshape(len(chunk), num_samples, -1, 3)
+                for i, g in zip(chunk, goals.cpu().numpy()):
+                    results[i] = g
+        return results
+
+    # --- checkpoints -----------------------------------------------------------------------------------------------
+
+    def save_pretrained(self, directory, state_dict: dict | None = None) -> None:
+        """Write config.json and model.safetensors into `directory` (created; files replaced atomically)."""
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        state = state_dict if state_dict is not None else self.net.state_dict()
+        state = {k: v.detach().to("cpu").contiguous() for k, v in state.items()}
+        _atomic_write(directory / WEIGHTS_NAME, lambda path: save_file(state, str(path), metadata={"format": "pt"}))
+        _atomic_write(directory / CONFIG_NAME, lambda path: cfg.save(self.config, path))
+
+    @classmethod
+    def from_pretrained(cls, directory, variant: str | None = None, map_location="cpu") -> "Tax3D":
+        """Load a checkpoint directory. `variant`, when given, must be the checkpoint's."""
+        directory = Path(directory)
+        if not directory.is_dir():
+            raise CheckpointError(f"{directory}: no such checkpoint directory")
+        for name in (CONFIG_NAME, WEIGHTS_NAME):
+            if not (directory / name).is_file():
+                raise CheckpointError(f"{directory}: incomplete checkpoint, {name} is missing")
+        config = cfg.load(directory / CONFIG_NAME)
+        if variant is not None and variant_spec(variant).name != config.model.variant:
+            raise CheckpointError(f"{directory}: the checkpoint is variant '{config.model.variant}', "
+                                  f"not the requested '{variant_spec(variant).name}'")
+        model = cls(config)
+        try:
+            state = load_file(str(directory / WEIGHTS_NAME), device=str(map_location))
+        except Exception as err:  # safetensors raises its own error types for corrupt headers
+            raise CheckpointError(f"{directory / WEIGHTS_NAME}: unreadable weights ({err})") from None
+        model.load_weights(state, str(directory / WEIGHTS_NAME))
+        return model.to(map_location).eval()
+
+    def load_weights(self, state: dict, where: str = "weights") -> None:
+        """Load a network state dict, with a one-line error when it does not fit this configuration."""
+        expected = self.net.state_dict()
+        missing = sorted(set(expected) - set(state))
+        unexpected = sorted(set(state) - set(expected))
+        wrong = sorted(k for k in set(expected) & set(state) if expected[k].shape != state[k].shape)
+        if missing or unexpected or wrong:
+            detail = (f"missing {missing[:3]}" if missing else f"unexpected {unexpected[:3]}" if unexpected
+                      else f"{wrong[0]} has shape {tuple(state[wrong[0]].shape)}, "
+                           f"expected {tuple(expected[wrong[0]].shape)}")
+            raise CheckpointError(f"{where}: weights do not match config.json ({detail})")
+        self.net.load_state_dict(state)
+
+
+def _atomic_write(path: Path, write) -> None:
+    """write(tmp_path) into a temporary file beside `path`, then rename it over `path`."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def read_config(directory) -> dict:
+    """The raw config.json of a checkpoint (for tools that only need to look)."""
+    return json.loads((Path(directory) / CONFIG_NAME).read_text())

@@ -1,0 +1,304 @@
+"""`tax3d train`: fit a TAX3D variant on demonstration folders.
+
+    tax3d train --preset cpu --out runs/cd --data.train DIR --data.val DIR [--model.variant cp --train.steps 2000]
+
+OUT gets config.json (the resolved configuration), log.jsonl (one line per logged step), last/ (config.json,
+model.safetensors and training_state.pt, rewritten atomically at every validation) and best/ (the weights with
+the lowest validation min-of-samples RMSE). A run whose OUT already holds last/ continues from it.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Dataset, Sampler
+
+from tax3d import config as cfg
+from tax3d.data.dataset import DemoDataset, demo_files
+from tax3d.data.format import load_demo
+from tax3d.errors import UsageError
+from tax3d.metrics import min_of_samples_rmse, rmse
+from tax3d.model.tax3d import CheckpointError, Tax3D
+
+STATE_NAME = "training_state.pt"
+
+
+@dataclass
+class Args:
+    """Train a TAX3D variant. Options left out take the preset's value (or, when resuming, the run's)."""
+
+    out: str = "runs/tax3d"
+    """output folder: config.json, log.jsonl, last/ and best/ checkpoints"""
+    preset: Literal["paper", "cpu"] = "paper"
+    """paper: the paper's settings (a GPU's work); cpu: settings that learn quickly on a CPU"""
+    resume: bool = False
+    """require a checkpoint in OUT/last to continue from (without it, one is used when present)"""
+    model: cfg.ModelOverrides = field(default_factory=cfg.ModelOverrides)
+    diffusion: cfg.DiffusionOverrides = field(default_factory=cfg.DiffusionOverrides)
+    data: cfg.DataOverrides = field(default_factory=cfg.DataOverrides)
+    train: cfg.TrainOverrides = field(default_factory=cfg.TrainOverrides)
+
+
+# --- learning rate and batches ---------------------------------------------------------------------------------
+
+
+def get_lr(step: int, c: cfg.TrainConfig) -> float:
+    """Linear warm-up to lr over warmup_steps, then a cosine decay to 0 at the last step (App. B.2)."""
+    if step < c.warmup_steps:
+        return c.lr * (step + 1) / c.warmup_steps
+    progress = (step - c.warmup_steps) / max(1, c.steps - c.warmup_steps)
+    return c.lr * 0.5 * (1.0 + math.cos(math.pi * min(progress, 1.0)))
+
+
+class StepBatches(Sampler):
+    """Batches of (epoch, index) pairs from a stream of per-epoch permutations, starting at a given step.
+
+    Batch s holds stream positions s * B .. (s + 1) * B - 1, so a resumed run sees exactly the batches it would
+    have seen without the interruption."""
+
+    def __init__(self, size: int, batch_size: int, seed: int, start_step: int = 0):
+        self.size, self.batch_size, self.seed, self.start_step = size, batch_size, seed, start_step
+
+    def permutation(self, epoch: int) -> list[int]:
+        generator = torch.Generator().manual_seed(int(np.random.SeedSequence([self.seed, epoch]).generate_state(1)[0]))
+        return torch.randperm(self.size, generator=generator).tolist()
+
+    def __iter__(self):
+        position = self.start_step * self.batch_size
+        epoch, order = -1, []
+        while True:
+            batch = []
+            for _ in range(self.batch_size):
+                e, i = divmod(position, self.size)
+                if e != epoch:
+                    epoch, order = e, self.permutation(e)
+                batch.append((e, order[i]))
+                position += 1
+            yield batch
+
+
+class EpochItems(Dataset):
+    """Item (epoch, index) of a DemoDataset: the sample it gives at that epoch."""
+
+    def __init__(self, dataset: DemoDataset):
+        self.dataset = dataset
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, key):
+        epoch, index = key
+        self.dataset.set_epoch(epoch)
+        return self.dataset[index]
+
+
+# --- validation ------------------------------------------------------------------------------------------------
+
+
+def load_val_demos(config: cfg.Config) -> list[dict]:
+    if not config.data.val:
+        return []
+    files = demo_files(config.data.val)
+    if config.train.val_demos > 0:
+        files = files[: config.train.val_demos]
+    return [load_demo(path) for path in files]
+
+
+def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps: int | None = None) -> dict:
+    """World-frame RMSE on whole action clouds: the mean over demos of the min over samples, and over all samples."""
+    was_training = model.training
+    model.eval()
+    scenes = [(d["action_pc"], d["anchor_pc"]) for d in demos]
+    predictions = model.predict_scenes(scenes, num_samples=num_samples, steps=steps, seed=seed)
+    model.train(was_training)
+    goals = [d["action_pc"] + d["flow"] for d in demos]
+    best = [float(min_of_samples_rmse(p, g)) for p, g in zip(predictions, goals)]
+    every = [float(rmse(p, g).mean()) for p, g in zip(predictions, goals)]
+    return {"val_rmse": float(np.mean(best)), "val_rmse_mean": float(np.mean(every))}
+
+
+# --- checkpoints -----------------------------------------------------------------------------------------------
+
+
+def save_checkpoint(out: Path, name: str, model: Tax3D, weights: dict, state: dict | None) -> None:
+    """Write OUT/name atomically: a temporary folder beside it, then two renames (the old one kept until then)."""
+    tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=out))
+    tmp.chmod(0o755)
+    model.save_pretrained(tmp, state_dict=weights)
+    if state is not None:
+        torch.save(state, tmp / STATE_NAME)
+        (tmp / STATE_NAME).chmod(0o644)
+    final, old = out / name, out / f".{name}.old"
+    if old.exists():
+        shutil.rmtree(old)
+    if final.exists():
+        final.rename(old)
+    tmp.rename(final)
+    if old.exists():
+        shutil.rmtree(old)
+
+
+def find_last(out: Path) -> Path | None:
+    """OUT/last, or the previous one when a kill came between the two renames of save_checkpoint."""
+    for name in ("last", ".last.old"):
+        if (out / name / STATE_NAME).is_file():
+            return out / name
+    return None
+
+
+def truncate_log(path: Path, step: int) -> None:
+    """Drop log lines written after the checkpoint a run resumes from (they will be written again)."""
+    if not path.is_file():
+        return
+    lines = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= step]
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text("".join(line + "\n" for line in lines))
+    os.replace(tmp, path)
+
+
+# --- configuration ---------------------------------------------------------------------------------------------
+
+
+def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.Config:
+    overrides = dict(model=args.model, diffusion=args.diffusion, data=args.data, train=args.train)
+    if last is None:
+        return cfg.validate(cfg.apply_overrides(cfg.preset(args.preset), **overrides), "options")
+    saved = cfg.load(last / "config.json")
+    config = cfg.validate(cfg.apply_overrides(copy.deepcopy(saved), **overrides), "options")
+    for section in ("model", "diffusion"):
+        if getattr(config, section) != getattr(saved, section):
+            changed = [f.name for f in dataclasses.fields(getattr(saved, section))
+                       if getattr(getattr(config, section), f.name) != getattr(getattr(saved, section), f.name)]
+            raise CheckpointError(f"--{section}.{changed[0]}: {last} was trained with "
+                                  f"{section}.{changed[0]} = {getattr(getattr(saved, section), changed[0])!r}; "
+                                  f"use another --out to train a different model")
+    return config
+
+
+def pick_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise UsageError("--train.device cuda: no CUDA device is available")
+    if name not in ("cpu", "cuda") and not name.startswith("cuda:"):
+        raise UsageError(f"--train.device {name!r}: expected auto, cpu or cuda")
+    return torch.device(name)
+
+
+# --- the loop --------------------------------------------------------------------------------------------------
+
+
+def run(args: Args) -> int:
+    from tqdm.auto import tqdm
+
+    out = Path(args.out)
+    last = find_last(out)
+    if args.resume and last is None:
+        raise UsageError(f"--resume: {out} holds no checkpoint to continue from (expected {out / 'last' / STATE_NAME})")
+    config = resolve_config(args, out, last)
+    c = config.train
+    if not config.data.train:
+        raise UsageError("--data.train: no training demonstration folder given")
+    if c.threads > 0:
+        torch.set_num_threads(c.threads)
+    device = pick_device(c.device)
+
+    dataset = DemoDataset(config.data.train, config.model.variant, train=True, rotate=config.data.rotate,
+                          num_action_points=config.data.num_action_points,
+                          num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size,
+                          target_scale=config.data.target_scale, seed=c.seed)
+    val_demos = load_val_demos(config)
+
+    torch.manual_seed(c.seed)
+    model = Tax3D(config).to(device)
+    ema = copy.deepcopy(model.net).requires_grad_(False) if c.ema > 0 else None
+    optimizer = torch.optim.AdamW(model.parameters(), lr=c.lr, weight_decay=c.weight_decay)
+    noise_gen = torch.Generator(device=device).manual_seed(c.seed)  # diffusion timesteps and noise
+    step, best, elapsed = 0, float("inf"), 0.0
+
+    if last is not None:
+        state = torch.load(last / STATE_NAME, map_location=device, weights_only=True)
+        model.load_weights(state["model"], str(last / STATE_NAME))
+        optimizer.load_state_dict(state["optimizer"])
+        if ema is not None:
+            ema.load_state_dict(state["ema"] if "ema" in state else state["model"])
+        noise_gen.set_state(state["noise_rng"].cpu() if device.type == "cpu" else state["noise_rng"])
+        torch.set_rng_state(state["torch_rng"].cpu())
+        step, best, elapsed = int(state["step"]), float(state["best"]), float(state["elapsed"])
+        print(f"resuming {out} at step {step}", file=sys.stderr)
+        truncate_log(out / "log.jsonl", step)
+    out.mkdir(parents=True, exist_ok=True)
+    cfg.save(config, out / "config.json")
+
+    loader = DataLoader(EpochItems(dataset), batch_sampler=StepBatches(len(dataset), c.batch_size, c.seed, step),
+                        num_workers=c.num_workers, persistent_workers=c.num_workers > 0)
+    batches = iter(loader)
+    log = open(out / "log.jsonl", "a")
+    bar = tqdm(total=c.steps, initial=step, desc="train", dynamic_ncols=True)
+    model.train()
+    started = time.time() - elapsed
+    while step < c.steps:
+        batch = {k: v.to(device) for k, v in next(batches).items()}
+        lr = get_lr(step, c)
+        for group in optimizer.param_groups:
+            group["lr"] = lr
+        t = model.diffusion.sample_timesteps(c.batch_size, device, noise_gen)
+        noise = torch.randn(batch["target"].shape, generator=noise_gen, device=device)
+        losses = model.loss(batch, t, noise)
+        optimizer.zero_grad(set_to_none=True)
+        losses["loss"].backward()
+        if c.grad_clip > 0:
+            torch.nn.utils.clip_grad_norm_(model.parameters(), c.grad_clip)
+        optimizer.step()
+        if ema is not None:
+            with torch.no_grad():
+                for e, p in zip(ema.parameters(), model.net.parameters()):
+                    e.lerp_(p, 1.0 - c.ema)
+        step += 1
+        bar.update(1)
+
+        out_of_time = c.time_limit > 0 and time.time() - started > 60 * c.time_limit
+        record = {"step": step, **{k: float(v.detach()) for k, v in losses.items()}, "lr": lr}
+        if step % c.val_every == 0 or step == c.steps or out_of_time:
+            weights = (ema if ema is not None else model.net).state_dict()
+            if val_demos:
+                evaluated = copy.deepcopy(model)
+                evaluated.net.load_state_dict(weights)
+                record.update(validate(evaluated, val_demos, c.val_samples, seed=c.seed))
+                if record["val_rmse"] < best:
+                    best = record["val_rmse"]
+                    save_checkpoint(out, "best", model, weights, None)
+            state = {"model": model.net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
+                     "best": best, "elapsed": time.time() - started, "noise_rng": noise_gen.get_state(),
+                     "torch_rng": torch.get_rng_state()}
+            if ema is not None:
+                state["ema"] = ema.state_dict()
+            save_checkpoint(out, "last", model, weights, state)
+            bar.set_postfix(loss=f"{record['loss']:.4f}", val=f"{record.get('val_rmse', float('nan')):.3f}")
+        record["seconds"] = round(time.time() - started, 2)
+        log.write(json.dumps(record) + "\n")
+        log.flush()
+        if out_of_time:
+            break
+    bar.close()
+    log.close()
+    return 0
+
+
+if __name__ == "__main__":
+    import tyro
+
+    sys.exit(run(tyro.cli(Args)))
