@@ -173,6 +173,8 @@ def validate(config: Config, where: str = "config") -> Config:
         (config.model.hidden_size % max(config.model.num_heads, 1) == 0 and config.model.num_heads > 0,
          "model.hidden_size must be a multiple of model.num_heads"),
         (config.model.depth >= 1, "model.depth must be at least 1"),
+        (config.diffusion.num_timesteps >= 21, "diffusion.num_timesteps must be at least 21 (the scaled linear "
+                                               "schedule's last beta, 20 / T, must stay below 1)"),
         (1 <= config.diffusion.sample_steps <= config.diffusion.num_timesteps,
          "diffusion.sample_steps must lie in [1, diffusion.num_timesteps]"),
         (config.data.num_action_points >= 1 and config.data.num_anchor_points >= 1,

@@ -1,0 +1,250 @@
+"""The predictor API: frames and invariances of the variants, any number of points, checkpoints, metrics, errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from tax3d import config as cfg
+from tax3d.cli import main
+from tax3d.data.format import save_demo
+from tax3d.metrics import MeanGoalBaseline, coverage_rmse, min_of_samples_rmse, precision_rmse, rmse
+from tax3d.model.tax3d import CheckpointError, Tax3D
+
+N, M = 24, 40  # action and anchor points of the synthetic scenes
+
+
+def tiny_config(variant: str = "cd", **data) -> cfg.Config:
+    config = cfg.Config(
+        model=cfg.ModelConfig(variant=variant, hidden_size=16, depth=1, num_heads=2),
+        diffusion=cfg.DiffusionConfig(num_timesteps=100, sample_steps=5),
+        data=cfg.DataConfig(num_action_points=16, num_anchor_points=24, **data),
+    )
+    return cfg.validate(config)
+
+
+def tiny_model(variant: str = "cd", seed: int = 0, **data) -> Tax3D:
+    """A tiny model with every weight random: zero-initialised layers would hide what the inputs do."""
+    torch.manual_seed(seed)
+    model = Tax3D(tiny_config(variant, **data))
+    with torch.no_grad():
+        for p in model.parameters():
+            p.normal_(0.0, 0.1)
+    return model.eval()
+
+
+def scene(seed: int = 0, n: int = N, m: int = M):
+    rng = np.random.default_rng(seed)
+    action = rng.normal(size=(n, 3)) * [2.0, 0.1, 2.0] + [0.0, 5.0, 8.0]
+    anchor = rng.normal(size=(m, 3)) * [0.5, 0.5, 2.0] + [4.0, -6.0, 3.0]
+    goal = rng.normal(size=(n, 3)) * [2.0, 0.5, 1.0] + [4.5, -6.5, 8.0]
+    return action, anchor, goal
+
+
+def synthetic_demo(seed: int = 0, n: int = N, m: int = M) -> dict:
+    action, anchor, goal = scene(seed, n, m)
+    return {
+        "action_pc": action, "action_seg": np.ones(n), "anchor_pc": anchor,
+        "anchor_seg": np.zeros(m, dtype=np.int32), "flow": goal - action, "speed_factor": np.array(1.0),
+        "rot": np.zeros(3), "trans": np.zeros(3),
+        "deform_params": {"num_holes": 1, "node_density": 25, "w": 1.0, "h": 1.0,
+                          "holes": [{"x0": 8, "x1": 16, "y0": 9, "y1": 13}]},
+        "anchors": {0: {"pos": np.zeros(3), "vertices": [0]}},
+    }
+
+
+@pytest.mark.parametrize("variant", ["cd", "cp", "cd_nac", "cp_nac", "rd", "rp", "sd", "sp"])
+def test_translating_the_scene_translates_the_goals(variant):
+    model = tiny_model(variant)
+    action, anchor, _ = scene()
+    shift = np.array([3.0, -2.0, 1.5])
+    goals = model.predict(action, anchor, num_samples=3, seed=7)
+    moved = model.predict(action + shift, anchor + shift, num_samples=3, seed=7)
+    np.testing.assert_allclose(moved, goals + shift, rtol=1e-4, atol=1e-4)
+
+
+@pytest.mark.parametrize("variant", ["cd_w", "cp_w"])
+def test_world_frame_variants_are_not_translation_invariant(variant):
+    model = tiny_model(variant)
+    action, anchor, _ = scene()
+    shift = np.array([3.0, -2.0, 1.5])
+    goals = model.predict(action, anchor, num_samples=3, seed=7)
+    moved = model.predict(action + shift, anchor + shift, num_samples=3, seed=7)
+    assert np.abs(moved - (goals + shift)).max() > 0.1
+
+
+def test_no_action_context_ignores_the_action_shape():
+    action, anchor, _ = scene()
+    mean = action.mean(0)
+    reshaped = (action - mean) * [0.3, 4.0, 1.7] + mean  # another cloth shape, same mean
+    cp = tiny_model("cp_nac")
+    np.testing.assert_allclose(cp.predict(reshaped, anchor, seed=3), cp.predict(action, anchor, seed=3), atol=1e-5)
+    # CD-NAC: the same cross-displacements, added to the new action points
+    cd = tiny_model("cd_nac")
+    np.testing.assert_allclose(cd.predict(reshaped, anchor, seed=3) - reshaped,
+                               cd.predict(action, anchor, seed=3) - action, atol=1e-5)
+    # with the action context the prediction does change
+    ctx = tiny_model("cp")
+    assert np.abs(ctx.predict(reshaped, anchor, seed=3) - ctx.predict(action, anchor, seed=3)).max() > 1e-3
+
+
+@pytest.mark.parametrize("variant", ["cd", "sd", "rp"])
+@pytest.mark.parametrize("n,m", [(16, 24), (37, 100), (5, 7)])
+def test_any_number_of_points(variant, n, m):
+    model = tiny_model(variant)
+    action, anchor, _ = scene(n=n, m=m)
+    goals = model.predict(action, anchor, num_samples=4, seed=0)
+    assert goals.shape == (4, n, 3) and np.isfinite(goals).all()
+    as_tensor = model.predict(torch.as_tensor(action), torch.as_tensor(anchor), num_samples=4, seed=0)
+    assert isinstance(as_tensor, torch.Tensor)
+    np.testing.assert_allclose(as_tensor.numpy(), goals, atol=1e-6)
+
+
+def test_samples_are_one_batch_and_steps_respace():
+    model = tiny_model("cd")
+    calls = []
+    forward = model.net.forward
+    model.net.forward = lambda x, *a: calls.append(x.shape[0]) or forward(x, *a)
+    action, anchor, _ = scene()
+    model.predict(action, anchor, num_samples=6, seed=0)
+    assert calls == [6] * 5  # one forward per denoising step, all samples together
+    calls.clear()
+    goals, trajectory = model.predict(action, anchor, num_samples=2, steps=3, sampler="ddim", seed=0,
+                                      return_trajectory=True)
+    assert len(calls) == 3 and trajectory.shape == (4, 2, N, 3)
+    np.testing.assert_allclose(trajectory[-1], goals, atol=1e-6)
+
+
+def test_seed_makes_predictions_repeatable():
+    model = tiny_model("cd")
+    action, anchor, _ = scene()
+    a = model.predict(action, anchor, num_samples=3, seed=11)
+    np.testing.assert_array_equal(a, model.predict(action, anchor, num_samples=3, seed=11))
+    assert np.abs(a - model.predict(action, anchor, num_samples=3, seed=12)).max() > 1e-3
+    assert np.abs(a[0] - a[1]).max() > 1e-3  # the samples of one call differ
+
+
+def test_predict_scenes_matches_shapes():
+    model = tiny_model("cp")
+    scenes = [scene(i)[:2] for i in range(3)] + [scene(5, n=9)[:2]]
+    goals = model.predict_scenes(scenes, num_samples=2, seed=0, batch_scenes=2)
+    assert [g.shape for g in goals] == [(2, N, 3)] * 3 + [(2, 9, 3)]
+
+
+@pytest.mark.parametrize("variant", ["cd", "cp_w", "sp", "rd"])
+def test_save_and_load_round_trip(tmp_path, variant):
+    model = tiny_model(variant, target_scale=0.5)
+    model.save_pretrained(tmp_path / "ckpt")
+    assert sorted(p.name for p in (tmp_path / "ckpt").iterdir()) == ["config.json", "model.safetensors"]
+    loaded = Tax3D.from_pretrained(tmp_path / "ckpt")
+    assert loaded.config == model.config
+    action, anchor, _ = scene()
+    np.testing.assert_array_equal(loaded.predict(action, anchor, num_samples=2, seed=5),
+                                  model.predict(action, anchor, num_samples=2, seed=5))
+
+
+def test_bad_checkpoints(tmp_path):
+    with pytest.raises(CheckpointError, match="no such checkpoint"):
+        Tax3D.from_pretrained(tmp_path / "missing")
+    tiny_model("cd").save_pretrained(tmp_path / "ckpt")
+    with pytest.raises(CheckpointError, match="variant 'cd', not the requested 'cp'"):
+        Tax3D.from_pretrained(tmp_path / "ckpt", variant="cp")
+    data = json.loads((tmp_path / "ckpt" / "config.json").read_text())
+    data["model"]["hidden_size"] = 32
+    (tmp_path / "ckpt" / "config.json").write_text(json.dumps(data))
+    with pytest.raises(CheckpointError, match="weights do not match"):
+        Tax3D.from_pretrained(tmp_path / "ckpt")
+    (tmp_path / "ckpt" / "model.safetensors").unlink()
+    with pytest.raises(CheckpointError, match="model.safetensors is missing"):
+        Tax3D.from_pretrained(tmp_path / "ckpt")
+
+
+def test_bad_points():
+    model = tiny_model("cd")
+    action, anchor, _ = scene()
+    with pytest.raises(Exception, match="action_points has shape"):
+        model.predict(action[:, :2], anchor)
+    with pytest.raises(Exception, match="anchor_points contains NaN"):
+        model.predict(action, np.full_like(anchor, np.nan))
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.err.strip()
+
+
+@pytest.fixture
+def checkpoint(tmp_path):
+    tiny_model("cd").save_pretrained(tmp_path / "ckpt")
+    folder = tmp_path / "demos"
+    folder.mkdir()
+    for i in range(3):
+        save_demo(folder / f"demo_{i}.npz", synthetic_demo(i))
+    return tmp_path / "ckpt", folder
+
+
+def test_predict_command(tmp_path, capsys, checkpoint):
+    ckpt, demos = checkpoint
+    code = main(["predict", "--checkpoint", str(ckpt), "--demos", str(demos), "--samples", "3", "--steps", "4",
+                 "--out", str(tmp_path / "p.npz"), "--baseline", str(demos)])
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and summary["demos"] == 3 and summary["rmse_min_of_samples"] <= summary["rmse_mean"]
+    with np.load(tmp_path / "p.npz") as f:
+        assert f["goals"].shape == (3, 3, N, 3) and f["rmse"].shape == (3, 3)
+        assert np.isclose(f["rmse"].min(1).mean(), summary["rmse_min_of_samples"])
+
+
+def test_predict_command_bad_input(tmp_path, capsys, checkpoint):
+    ckpt, demos = checkpoint
+    (tmp_path / "empty").mkdir()
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    demo = synthetic_demo(0)
+    demo["anchor_pc"] = np.zeros((0, 3))
+    np.savez(bad / "demo_0.npz", **{k: v for k, v in demo.items() if k not in ("deform_params", "anchors")})
+    incomplete = tmp_path / "incomplete"
+    incomplete.mkdir()
+    (incomplete / "config.json").write_text((ckpt / "config.json").read_text())
+    cases = [
+        (["--checkpoint", str(tmp_path / "nope"), "--demos", str(demos)], "no such checkpoint"),
+        (["--checkpoint", str(incomplete), "--demos", str(demos)], "model.safetensors is missing"),
+        (["--checkpoint", str(ckpt), "--demos", str(demos), "--variant", "cp"], "variant 'cd'"),
+        (["--checkpoint", str(ckpt), "--demos", str(tmp_path / "empty")], "no demo_N.npz files"),
+        (["--checkpoint", str(ckpt), "--demos", str(bad)], "missing keys"),
+        (["--checkpoint", str(ckpt), "--demos", str(demos), "--steps", "101"], "--steps 101"),
+    ]
+    for argv, message in cases:
+        code, err = run_cli(capsys, "predict", *argv)
+        assert code == 2, argv
+        assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_metrics():
+    goal = np.zeros((5, 3))
+    pred = np.stack([np.full((5, 3), v) for v in (1.0, 2.0)])  # two samples, errors sqrt(3) and 2 sqrt(3)
+    np.testing.assert_allclose(rmse(pred, goal), [np.sqrt(3), 2 * np.sqrt(3)])
+    assert rmse(torch.as_tensor(pred), torch.as_tensor(goal)).shape == (2,)
+    assert np.isclose(min_of_samples_rmse(pred, goal), np.sqrt(3))
+    batch = np.stack([pred, pred + 1.0])  # (D = 2, K = 2, N, 3)
+    np.testing.assert_allclose(min_of_samples_rmse(batch, np.zeros((2, 5, 3))), [np.sqrt(3), 2 * np.sqrt(3)])
+    goals = np.stack([np.zeros((5, 3)), np.full((5, 3), 3.0)])  # two modes
+    # coverage: mode 0 -> best sample 1.0 (sqrt 3); mode 3 -> best sample 2.0 (sqrt 3)
+    assert np.isclose(coverage_rmse(pred, goals), np.sqrt(3))
+    # precision: sample 1.0 -> mode 0 (sqrt 3); sample 2.0 -> mode 3 (sqrt 3)
+    assert np.isclose(precision_rmse(pred, goals), np.sqrt(3))
+    assert np.isclose(precision_rmse(pred[:1], goals), np.sqrt(3))
+    assert np.isclose(coverage_rmse(pred[:1], goals), (np.sqrt(3) + 2 * np.sqrt(3)) / 2)
+
+
+def test_mean_goal_baseline():
+    demos = [synthetic_demo(i) for i in range(4)]
+    baseline = MeanGoalBaseline.fit(demos)
+    d = demos[0]
+    shifted = baseline.predict(d["action_pc"], d["anchor_pc"] + 1.0) - baseline.predict(d["action_pc"], d["anchor_pc"])
+    np.testing.assert_allclose(shifted, 1.0)
+    single = MeanGoalBaseline.fit([d])
+    np.testing.assert_allclose(single.predict(d["action_pc"], d["anchor_pc"]), d["action_pc"] + d["flow"])
