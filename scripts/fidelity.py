@@ -38,7 +38,9 @@ def reset_checks(folder: Path) -> dict:
         demo = load_demo(path)
         trans = demo["trans"]
         floor = bool(demo["anchor_pc"][:, 2].min() >= trans[2] - 0.05)
-        env = envs.setdefault(floor, HangClothEnv(floor=floor))
+        if floor not in envs:
+            envs[floor] = HangClothEnv(floor=floor)
+        env = envs[floor]
         state = env.reset(demo["deform_params"], demo["rot"][2], trans)
         init_err.append(float(np.abs(state.cloth - demo["action_pc"]).max()))
         anchor_nn.append(mean_symmetric_nn(env.anchor_points(), demo["anchor_pc"]))
