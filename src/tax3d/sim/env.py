@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +42,14 @@ FORCE_CLIP = 5.0  # per-axis clip, not a norm (appendix A.3, footnote)
 EXPLODED_EXTENT = 60.0  # a vertex this far from the origin means the simulation blew up
 
 
+def _release(client: int, tmpdir: str) -> None:
+    try:
+        pybullet.disconnect(client)
+    except pybullet.error:
+        pass
+    shutil.rmtree(tmpdir, ignore_errors=True)
+
+
 class SimulationExploded(RuntimeError):
     """NaN or far-flung cloth vertices: the episode is failed and never saved."""
 
@@ -64,12 +73,11 @@ class HangClothEnv:
         self.gripper_ids: list[int] = []
         self.anchor_ids: tuple[int, int] = (-1, -1)
         self.rot_z, self.trans = 0.0, np.zeros(3)
+        self._finalizer = weakref.finalize(self, _release, self.client, self.tmpdir)
 
     def close(self) -> None:
-        if self.client >= 0:
-            pybullet.disconnect(self.client)
-            self.client = -1
-        shutil.rmtree(self.tmpdir, ignore_errors=True)
+        self._finalizer()
+        self.client = -1
 
     def __enter__(self):
         return self
