@@ -1,0 +1,158 @@
+"""The training command: learning one demonstration, outputs, resuming after a kill, and bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from safetensors.torch import load_file
+
+from tax3d import config as cfg
+from tax3d import train
+from tax3d.cli import main
+from tax3d.data.format import load_demo, save_demo
+from tax3d.metrics import rmse
+from tax3d.model.tax3d import Tax3D
+
+from tests.test_model_api import synthetic_demo
+
+TINY = ["--preset", "cpu", "--model.hidden_size", "32", "--model.depth", "2", "--model.num_heads", "2",
+        "--data.num_action_points", "16", "--data.num_anchor_points", "24", "--data.train_size", "16",
+        "--train.batch_size", "8", "--train.threads", "1", "--train.val_samples", "2"]
+
+
+@pytest.fixture
+def demos(tmp_path):
+    folder = tmp_path / "demos"
+    folder.mkdir()
+    for i in range(2):
+        save_demo(folder / f"demo_{i}.npz", synthetic_demo(i))
+    return folder
+
+
+def read_log(out):
+    return [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+
+
+def test_overfits_one_demonstration(tmp_path, capsys):
+    folder = tmp_path / "one"
+    folder.mkdir()
+    save_demo(folder / "demo_0.npz", synthetic_demo(3))
+    out = tmp_path / "run"
+    code = main(["train", *TINY, "--out", str(out), "--data.train", str(folder), "--data.val", str(folder),
+                 "--train.steps", "400", "--train.val_every", "400", "--train.warmup_steps", "20",
+                 "--data.target_scale", "0.25"])
+    assert code == 0
+    demo = load_demo(folder / "demo_0.npz")
+    goal = demo["action_pc"] + demo["flow"]
+    model = Tax3D.from_pretrained(out / "best")
+    goals = model.predict(demo["action_pc"], demo["anchor_pc"], num_samples=4, seed=0)
+    # the trivial predictions: the untrained network (zero cross-displacement in the anchor frame), and no motion
+    untrained = Tax3D(model.config).predict(demo["action_pc"], demo["anchor_pc"], seed=0)
+    trivial = min(float(rmse(untrained[0], goal)), float(rmse(demo["action_pc"], goal)))
+    assert float(rmse(goals, goal).mean()) < 0.2 * trivial
+    log = read_log(out)
+    assert [r["step"] for r in log] == list(range(1, 401)) and "val_rmse" in log[-1]
+    assert {"loss", "mse", "vb", "lr", "seconds"} <= set(log[0])
+
+
+def test_outputs_and_config(tmp_path, demos):
+    out = tmp_path / "run"
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--model.variant", "CP-W",
+                 "--train.steps", "6", "--train.val_every", "3", "--data.val", str(demos)]) == 0
+    config = cfg.load(out / "config.json")
+    assert config.model.variant == "cp_w" and config.model.hidden_size == 32 and config.train.steps == 6
+    assert config.train.lr == cfg.cpu().train.lr  # preset values survive where no option is given
+    assert sorted(p.name for p in (out / "best").iterdir()) == ["config.json", "model.safetensors"]
+    assert sorted(p.name for p in (out / "last").iterdir()) == ["config.json", "model.safetensors",
+                                                                train.STATE_NAME]
+    state = torch.load(out / "last" / train.STATE_NAME, weights_only=True)
+    assert state["step"] == 6
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary folders left
+
+
+@pytest.mark.parametrize("variant", ["rd", "sp", "cd_nac"])
+def test_every_kind_of_variant_trains(tmp_path, demos, variant):
+    out = tmp_path / variant
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--model.variant", variant,
+                 "--train.steps", "2", "--train.val_every", "2", "--data.val", str(demos)]) == 0
+    assert np.isfinite(read_log(out)[-1]["val_rmse"])
+    assert Tax3D.from_pretrained(out / "best").spec.name == variant
+
+
+def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, demos, monkeypatch):
+    args = [*TINY, "--data.train", str(demos), "--train.steps", "12", "--train.val_every", "5",
+            "--train.ema", "0.9", "--data.rotate", "True"]
+    assert main(["train", *args, "--out", str(tmp_path / "whole")]) == 0
+
+    # Kill the second run while it loads the batch of step 8 (its last checkpoint is at step 5) ...
+    calls = {"n": 0}
+    getitem = train.EpochItems.__getitem__
+
+    def dying(self, key):
+        calls["n"] += 1
+        if calls["n"] > 7 * 8:
+            raise KeyboardInterrupt
+        return getitem(self, key)
+
+    monkeypatch.setattr(train.EpochItems, "__getitem__", dying)
+    assert main(["train", *args, "--out", str(tmp_path / "killed")]) == 130
+    assert [r["step"] for r in read_log(tmp_path / "killed")][-1] == 7
+    monkeypatch.setattr(train.EpochItems, "__getitem__", getitem)
+    # ... and resume it: the same losses, step for step, and the same weights
+    assert main(["train", *args, "--out", str(tmp_path / "killed"), "--resume"]) == 0
+    whole, resumed = read_log(tmp_path / "whole"), read_log(tmp_path / "killed")
+    assert [r["step"] for r in resumed] == list(range(1, 13))
+    for a, b in zip(whole, resumed):
+        assert a["loss"] == b["loss"] and a["lr"] == b["lr"] and a.get("val_rmse") == b.get("val_rmse")
+    for name in ("last",):
+        w1 = load_file(tmp_path / "whole" / name / "model.safetensors")
+        w2 = load_file(tmp_path / "killed" / name / "model.safetensors")
+        assert all(torch.equal(w1[k], w2[k]) for k in w1)
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    return code, capsys.readouterr().err.strip()
+
+
+def test_bad_input(tmp_path, demos, capsys):
+    out = tmp_path / "run"
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    nan = tmp_path / "nan"
+    nan.mkdir()
+    demo = synthetic_demo(0)
+    demo["flow"][3, 1] = np.nan
+    np.savez(nan / "demo_0.npz", **{k: (np.array(v, dtype=object) if isinstance(v, dict) else v)
+                                    for k, v in demo.items()})
+    shapes = tmp_path / "shapes"
+    shapes.mkdir()
+    demo = synthetic_demo(0)
+    demo["flow"] = demo["flow"][:5]
+    np.savez(shapes / "demo_0.npz", **{k: (np.array(v, dtype=object) if isinstance(v, dict) else v)
+                                       for k, v in demo.items()})
+    base = ["train", *TINY, "--train.steps", "2", "--train.val_every", "2"]
+    cases = [
+        ([*base, "--out", str(out)], "--data.train"),
+        ([*base, "--out", str(out), "--data.train", str(empty)], "no demo_N.npz files"),
+        ([*base, "--out", str(out), "--data.train", str(tmp_path / "nope")], "no such demonstration folder"),
+        ([*base, "--out", str(out), "--data.train", str(nan)], "NaN"),
+        ([*base, "--out", str(out), "--data.train", str(shapes)], "flow has shape"),
+        ([*base, "--out", str(out), "--data.train", str(demos), "--data.val", str(empty)], "no demo_N.npz files"),
+        ([*base, "--out", str(out), "--data.train", str(demos), "--model.variant", "xx"], "unknown variant"),
+        ([*base, "--out", str(out), "--data.train", str(demos), "--model.num_heads", "3"], "num_heads"),
+        ([*base, "--out", str(tmp_path / "fresh"), "--data.train", str(demos), "--resume"], "--resume"),
+    ]
+    for argv, message in cases:
+        code, err = run_cli(capsys, *argv)
+        assert code == 2, argv
+        assert message in err and len(err.splitlines()) == 1, err
+    # a finished run, then a different variant or network in the same folder
+    assert main([*base, "--out", str(out), "--data.train", str(demos)]) == 0
+    capsys.readouterr()
+    for flag, value in (("--model.variant", "cp"), ("--model.depth", "3")):
+        code, err = run_cli(capsys, *base, "--out", str(out), "--data.train", str(demos), flag, value)
+        assert code == 2 and flag in err and len(err.splitlines()) == 1, err
