@@ -11,6 +11,7 @@ COMMANDS = {
     "generate": ("tax3d.sim.generate", "generate demonstrations in the official file layout"),
     "train": ("tax3d.train", "train a TAX3D variant on demonstration folders"),
     "predict": ("tax3d.predict", "predict goal clouds for demonstration files with a checkpoint"),
+    "eval": ("tax3d.evaluate", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
     "demo": ("tax3d.demo", "the main job on the embedded default"),
 }
 

@@ -172,3 +172,13 @@ class HangClothEnv:
         """The release phase: the grippers stay tied to the cloth but no force is applied (REFERENCE.md)."""
         for _ in range(steps):
             pybullet.stepSimulation(physicsClientId=self.client)
+
+
+_PROCESS_ENVS: dict[bool, HangClothEnv] = {}
+
+
+def process_env(floor: bool = True) -> HangClothEnv:
+    """One scene per worker process and floor setting, reused across episodes."""
+    if floor not in _PROCESS_ENVS:
+        _PROCESS_ENVS[floor] = HangClothEnv(floor=floor)
+    return _PROCESS_ENVS[floor]

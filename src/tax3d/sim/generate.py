@@ -16,6 +16,7 @@ import numpy as np
 from tax3d.data.format import demo_index, is_valid_demo, list_demos, load_demo, save_demo
 from tax3d.errors import UsageError
 from tax3d.sim.cloth import validate_cloth_params
+from tax3d.sim.env import process_env
 from tax3d.sim.tasks import episode_params, get_split, get_task
 
 
@@ -76,26 +77,12 @@ class JobResult:
     seconds: float = 0.0
 
 
-_ENV = None
-
-
-def _env(floor: bool):
-    global _ENV
-    from tax3d.sim.env import HangClothEnv
-
-    if _ENV is None or _ENV.floor != floor:
-        if _ENV is not None:
-            _ENV.close()
-        _ENV = HangClothEnv(floor=floor)
-    return _ENV
-
-
 def run_job(job: Job) -> JobResult:
     """Run the expert on one cloth (every hole of a multimodal pair); save only when all its episodes succeed."""
     from tax3d.sim.episode import episode_to_demo, expert_policy, run_episode
     from tax3d.sim.render import render_frame, save_frames
 
-    env = _env(job.floor)
+    env = process_env(job.floor)
     result = JobResult(job.names)
     attempts = 1 if job.replay is not None else job.max_attempts
     for attempt in range(attempts):

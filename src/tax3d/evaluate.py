@@ -1,0 +1,302 @@
+"""`tax3d eval`: a checkpoint predicts goals, the policy executes them in the simulator, the success check judges.
+
+The environment runner (this module) is separate from the policy it evaluates (`tax3d.policy`).
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import multiprocessing
+import os
+import platform
+import sys
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tax3d.errors import UsageError
+
+SPLIT_FOLDERS = {"train": ("train",), "unseen": ("unseen", "val"), "ood": ("ood", "val_ood")}
+
+
+@dataclass
+class Args:
+    """Evaluate a checkpoint on HangProcCloth: RMSE and policy success per split, a table, JSON and an HTML report."""
+
+    checkpoint: Path
+    """checkpoint directory (config.json + model.safetensors)"""
+    task: str = "hangproccloth-simple"
+    """hangproccloth-simple, hangproccloth-unimodal or hangproccloth-multimodal"""
+    splits: str = "train,unseen,ood"
+    """comma-separated splits to evaluate"""
+    data: Path | None = None
+    """folder with a demo sub-folder per split (train, unseen or val, ood): its episodes are replayed and their goals
+    scored; a split without a folder gets fresh anchor poses from the split's seeds (success only)"""
+    episodes: int | None = None
+    """episodes per split (default: every demo of the split's folder, or the paper's size)"""
+    samples: int = 1
+    """goal samples per episode (the policy executes the first); RMSE is their mean, coverage their min"""
+    steps: int | None = None
+    """denoising steps (default: the checkpoint's)"""
+    replan_every: int = 0
+    """closed loop: predict again every K environment steps (0: open loop, the paper's policy)"""
+    workers: int = 2
+    """worker processes, each with its own simulator and a copy of the model"""
+    seed: int = 0
+    out: Path = Path("out/eval")
+    """output folder: results.json, results.md, report.html, images/"""
+    report: bool = True
+    """write the HTML report"""
+
+
+@dataclass
+class EvalJob:
+    split: str
+    name: str
+    cloth_params: dict
+    rot_z: float
+    trans: list
+    floor: bool
+    checkpoint: str
+    true_goal: np.ndarray | None = None
+    samples: int = 1
+    steps: int | None = None
+    replan_every: int = 0
+    seed: int = 0
+    denoising: bool = False
+
+
+_PREDICTORS: dict = {}
+
+
+def _predictor(checkpoint: str):
+    if checkpoint not in _PREDICTORS:
+        import torch
+
+        from tax3d.model.tax3d import Tax3D
+
+        torch.set_num_threads(1)
+        _PREDICTORS[checkpoint] = Tax3D.from_pretrained(checkpoint)
+    return _PREDICTORS[checkpoint]
+
+
+def run_eval_job(job: EvalJob) -> dict:
+    """One evaluation episode in this process: predict, execute open or closed loop, release, judge."""
+    from tax3d.metrics import rmse
+    from tax3d.policy import GoalPolicy
+    from tax3d.sim.env import process_env
+    from tax3d.sim.episode import run_episode
+
+    policy = GoalPolicy(_predictor(job.checkpoint), job.samples, job.steps, job.seed, job.replan_every,
+                        trajectory=job.denoising)
+    ep = run_episode(process_env(job.floor), job.cloth_params, job.rot_z, job.trans, policy)
+    pred = policy.first_prediction
+    errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
+    return {
+        "split": job.split, "name": job.name, "success": bool(ep.success), "exploded": bool(ep.exploded),
+        "rmse": None if errors is None else float(errors.mean()),
+        "min_rmse": None if errors is None else float(errors.min()),
+        "predict_seconds": policy.predict_seconds, "sim_seconds": ep.seconds - policy.predict_seconds,
+        "checks": ep.checks, "action_pc": ep.action_pc, "anchor_pc": ep.anchor_pc, "pred_goal": pred,
+        "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": list(ep.grip_vertices),
+        "denoising": policy.denoising, "cloth_key": _cloth_key(job),
+    }
+
+
+def _cloth_key(job: EvalJob) -> str:
+    return json.dumps([job.split, job.cloth_params, round(job.rot_z, 9), [round(t, 9) for t in job.trans]])
+
+
+def _split_folder(data: Path | None, split: str) -> Path | None:
+    if data is None:
+        return None
+    for name in SPLIT_FOLDERS[split]:
+        if (data / name).is_dir():
+            return data / name
+    return None
+
+
+def plan_jobs(args: Args) -> list[EvalJob]:
+    from tax3d.data.format import list_demos, load_demo
+    from tax3d.sim.tasks import episode_params, get_split, get_task
+
+    task = get_task(args.task)
+    if args.episodes is not None and args.episodes < 1:
+        raise UsageError(f"--episodes {args.episodes}: expected at least 1 episode per split")
+    if args.data is not None and not args.data.is_dir():
+        raise UsageError(f"--data {args.data}: no such folder; expected one demo folder per split inside it")
+    jobs = []
+    for split_name in [s.strip() for s in args.splits.split(",") if s.strip()]:
+        split = get_split(split_name)
+        folder = _split_folder(args.data, split.name)
+        common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
+                      replan_every=args.replan_every)
+        if folder is not None:
+            paths = list_demos(folder)[: args.episodes]
+            for i, path in enumerate(paths):
+                demo = load_demo(path)
+                trans = demo["trans"]
+                floor = bool(demo["anchor_pc"][:, 2].min() >= trans[2] - 0.05)
+                jobs.append(EvalJob(split.name, path.stem, demo["deform_params"], float(demo["rot"][2]),
+                                    trans.tolist(), floor, true_goal=demo["action_pc"] + demo["flow"],
+                                    seed=args.seed + i, **common))
+        else:
+            num = task.sizes[split.name] if args.episodes is None else args.episodes
+            for i in range(num):
+                params = episode_params(task, split, i // task.demos_per_cloth)
+                jobs.append(EvalJob(split.name, f"episode_{i}", params.cloth_params, params.rot_z,
+                                    params.trans.tolist(), True, seed=args.seed + i, **common))
+    if not jobs:
+        raise UsageError(f"--splits {args.splits!r}: no episodes to evaluate")
+    jobs[0].denoising = True
+    return jobs
+
+
+def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True) -> list[dict]:
+    """Episodes in worker processes; a worker that dies marks its episodes failed instead of hanging."""
+    from tqdm import tqdm
+
+    results: list[dict] = []
+    bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress, file=sys.stderr)
+    if workers == 1:
+        for job in jobs:
+            results.append(run_eval_job(job))
+            bar.update()
+    else:
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            futures = {pool.submit(run_eval_job, job): job for job in jobs}
+            for future in as_completed(futures):
+                try:
+                    results.append(future.result())
+                except BrokenProcessPool:
+                    job = futures[future]
+                    results.append(_failed(job, "worker process died"))
+                bar.update()
+    bar.close()
+    order = {(j.split, j.name): i for i, j in enumerate(jobs)}
+    return sorted(results, key=lambda r: order[(r["split"], r["name"])])
+
+
+def _failed(job: EvalJob, why: str) -> dict:
+    return {"split": job.split, "name": job.name, "success": False, "exploded": False, "error": why, "rmse": None,
+            "min_rmse": None, "predict_seconds": 0.0, "sim_seconds": 0.0, "checks": {}, "action_pc": None,
+            "anchor_pc": None, "pred_goal": None, "true_goal": job.true_goal, "released_pc": None,
+            "grip_vertices": [], "denoising": None, "cloth_key": _cloth_key(job)}
+
+
+def summarise(results: list[dict], splits: list[str]) -> dict:
+    """Per split: success rate, RMSE, and coverage / precision RMSE over each cloth's goals (appendix C)."""
+    from tax3d.metrics import coverage_rmse, precision_rmse
+
+    table = {}
+    for split in splits:
+        rows = [r for r in results if r["split"] == split]
+        if not rows:
+            continue
+        scored = [r["rmse"] for r in rows if r["rmse"] is not None]
+        clothes: dict[str, list[dict]] = {}
+        for r in rows:
+            if r["true_goal"] is not None and r["pred_goal"] is not None:
+                clothes.setdefault(r["cloth_key"], []).append(r)
+        coverage, precision = [], []
+        for group in clothes.values():
+            samples = np.concatenate([r["pred_goal"] for r in group])
+            goals = np.stack([r["true_goal"] for r in group])
+            coverage.append(float(coverage_rmse(samples, goals)))
+            precision.append(float(precision_rmse(samples, goals)))
+        table[split] = {
+            "episodes": len(rows),
+            "success_rate": float(np.mean([r["success"] for r in rows])),
+            "rmse": float(np.mean(scored)) if scored else None,
+            "coverage_rmse": float(np.mean(coverage)) if coverage else None,
+            "precision_rmse": float(np.mean(precision)) if precision else None,
+            "predict_seconds": float(np.mean([r["predict_seconds"] for r in rows])),
+            "sim_seconds": float(np.mean([r["sim_seconds"] for r in rows])),
+            "failed_runs": sum(1 for r in rows if r.get("error") or r["exploded"]),
+        }
+    return table
+
+
+def format_table(table: dict) -> str:
+    splits = list(table)
+    lines = [f"{'':<14}" + "".join(f"{s:>10}" for s in splits)]
+    for label, key, fmt in (("RMSE", "rmse", "{:.3f}"), ("Success rate", "success_rate", "{:.2f}"),
+                            ("Coverage RMSE", "coverage_rmse", "{:.3f}"), ("Precision RMSE", "precision_rmse", "{:.3f}")):
+        if key != "success_rate" and key != "rmse" and all(table[s][key] is None for s in splits):
+            continue
+        cells = ["-" if table[s][key] is None else fmt.format(table[s][key]) for s in splits]
+        lines.append(f"{label:<14}" + "".join(f"{c:>10}" for c in cells))
+    return "\n".join(lines)
+
+
+def evaluate(args: Args, progress: bool = True) -> dict:
+    from tax3d.model.tax3d import Tax3D
+    from tax3d.sim.tasks import get_task
+
+    get_task(args.task)
+    if args.workers < 1:
+        raise UsageError(f"--workers {args.workers}: expected at least 1")
+    if args.samples < 1:
+        raise UsageError(f"--samples {args.samples}: expected at least 1")
+    model = Tax3D.from_pretrained(args.checkpoint)  # fails early, in one line, on a bad checkpoint
+    _check_task(model, args)
+    jobs = plan_jobs(args)
+    results = run_jobs(jobs, args.workers, progress)
+    splits = list(dict.fromkeys(j.split for j in jobs))
+    summary = {
+        "checkpoint": str(args.checkpoint), "task": args.task, "variant": model.config.model.variant,
+        "command": "tax3d eval " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["eval"] else "tax3d.evaluate",
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "date": datetime.date.today().isoformat(), "args": {k: str(v) for k, v in asdict(args).items()},
+        "splits": summarise(results, splits),
+    }
+    _write_outputs(args, summary, results)
+    return {"summary": summary, "results": results}
+
+
+def _check_task(model, args: Args) -> None:
+    trained_on = getattr(model.config.data, "task", "") or ""
+    if trained_on and trained_on != args.task:
+        raise UsageError(f"--checkpoint {args.checkpoint}: trained for task {trained_on!r}, not {args.task!r}")
+
+
+def _write_outputs(args: Args, summary: dict, results: list[dict]) -> None:
+    args.out.mkdir(parents=True, exist_ok=True)
+    scalars = [{k: v for k, v in r.items() if not isinstance(v, np.ndarray) and k not in ("cloth_key",)}
+               for r in results]
+    path = args.out / "results.json"
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps({"summary": summary, "episodes": scalars}, indent=2, default=_plain))
+    os.replace(tmp, path)
+    if args.report:
+        from tax3d.report import write_report
+
+        episodes = [r for r in results if r["action_pc"] is not None]
+        write_report(args.out, summary, episodes, title=f"TAX3D-{summary['variant'].upper()} on {args.task}")
+
+
+def _plain(value):
+    if isinstance(value, (np.generic,)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"cannot serialise {type(value)}")
+
+
+def run(args: Args) -> int:
+    out = evaluate(args)
+    summary = out["summary"]
+    print(f"TAX3D-{summary['variant'].upper()} on {args.task}, checkpoint {args.checkpoint}")
+    print(format_table(summary["splits"]))
+    failed = sum(s["failed_runs"] for s in summary["splits"].values())
+    if failed:
+        print(f"{failed} episodes ended early (cloth exploded or flung far, or a worker died); counted as failures")
+    print(f"results: {args.out / 'results.json'}")
+    if args.report:
+        print(f"report: {args.out / 'report.html'}")
+    return 0

@@ -1,0 +1,51 @@
+"""The goal-conditioned evaluation policy of appendix A.3: predicted grip-vertex positions become gripper targets."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+class GoalPolicy:
+    """Predict the goal once on the full action cloud; drive the grippers to the predicted grip vertices.
+
+    With replan_every = K > 0 it predicts again every K environment steps from the current cloth (closed loop,
+    the paper's stated limitation; reported separately). Called as make_policy(env, state) by run_episode.
+    """
+
+    def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
+                 replan_every: int = 0, trajectory: bool = False):
+        self.predictor, self.num_samples, self.steps, self.seed = predictor, num_samples, steps, seed
+        self.replan_every, self.trajectory = replan_every, trajectory
+        self.predict_seconds, self.predictions = 0.0, 0
+        self.first_prediction: np.ndarray | None = None  # (S, N, 3) world-frame goal samples
+        self.denoising: np.ndarray | None = None  # (K, N, 3) intermediate goals of sample 0, noise to final
+
+    def __call__(self, env, state):
+        self.anchor = env.anchor_points()
+        self.grip = list(env.mesh.grip_vertices())
+        self.step = 0
+        self._predict(state.cloth)
+        return self
+
+    def _predict(self, cloth: np.ndarray) -> None:
+        start = time.perf_counter()
+        seed = self.seed + self.predictions
+        if self.trajectory and self.predictions == 0:
+            goals, path = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps,
+                                                 seed=seed, return_trajectory=True)
+            self.denoising = path[:, 0]
+        else:
+            goals = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps, seed=seed)
+        self.predict_seconds += time.perf_counter() - start
+        if self.predictions == 0:
+            self.first_prediction = goals
+        self.predictions += 1
+        self.current = goals[0][self.grip]
+
+    def targets(self, cloth: np.ndarray) -> np.ndarray:
+        if self.replan_every and self.step and self.step % self.replan_every == 0:
+            self._predict(cloth)
+        self.step += 1
+        return self.current
