@@ -26,6 +26,8 @@ def main() -> int:
     parser.add_argument("--splits", default="unseen,ood")
     parser.add_argument("--num", type=int, default=40)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--keep", type=Path, default=None,
+                        help="keep the demonstrations in KEEP/<task>/<split> (rerun `tax3d generate` there to fill gaps)")
     args = parser.parse_args()
     report = {
         "command": "python " + " ".join(sys.argv),
@@ -35,9 +37,13 @@ def main() -> int:
     }
     for task in args.tasks.split(","):
         for split in args.splits.split(","):
-            with tempfile.TemporaryDirectory() as out:
-                a = Args(task=task, split=split, num=args.num, out=Path(out), workers=args.workers, max_attempts=1)
+            with tempfile.TemporaryDirectory() as tmp:
+                out = Path(tmp) if args.keep is None else args.keep / task / split
+                a = Args(task=task, split=split, num=args.num, out=out, workers=args.workers, max_attempts=1)
                 stats = generate(a, progress=False)
+            if stats["skipped"]:
+                print(f"expert_rates: {out} already holds demos; use an empty folder", file=sys.stderr)
+                return 2
             row = {k: stats[k] for k in ("episodes", "successes", "exploded", "success_rate", "seconds_per_episode")}
             report["rates"].append({"task": task, "split": split, **row})
             print(json.dumps(report["rates"][-1]), file=sys.stderr, flush=True)
