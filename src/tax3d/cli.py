@@ -12,6 +12,7 @@ COMMANDS = {
     "train": ("tax3d.train", "train a TAX3D variant on demonstration folders"),
     "predict": ("tax3d.predict", "predict goal clouds for demonstration files with a checkpoint"),
     "eval": ("tax3d.evaluate", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
+    "benchmark": ("tax3d.benchmark", "generate, train and evaluate a task for a list of variants, resumable"),
     "demo": ("tax3d.demo", "the main job on the embedded default"),
 }
 
