@@ -58,6 +58,8 @@ class DataConfig:
     """the network's target is the variant's target times this"""
     rotate: bool = True
     """rotate anchor and goal about z by U(0, 2 pi) in training"""
+    task: str = ""
+    """the benchmark task the demonstrations come from (recorded so evaluation can check it; empty: unknown)"""
 
 
 @dataclass

@@ -156,26 +156,30 @@ def plan_jobs(args: Args) -> list[EvalJob]:
     return jobs
 
 
-def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True) -> list[dict]:
-    """Episodes in worker processes; a worker that dies marks its episodes failed instead of hanging."""
+def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_eval_job) -> list[dict]:
+    """Episodes in worker processes; an episode that raises, or whose worker dies, is marked failed: no hang."""
     from tqdm import tqdm
 
     results: list[dict] = []
     bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress, file=sys.stderr)
     if workers == 1:
         for job in jobs:
-            results.append(run_eval_job(job))
+            try:
+                results.append(fn(job))
+            except Exception as err:  # one broken episode must not lose the others
+                results.append(_failed(job, f"{type(err).__name__}: {err}"))
             bar.update()
     else:
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            futures = {pool.submit(run_eval_job, job): job for job in jobs}
+            futures = {pool.submit(fn, job): job for job in jobs}
             for future in as_completed(futures):
                 try:
                     results.append(future.result())
                 except BrokenProcessPool:
-                    job = futures[future]
-                    results.append(_failed(job, "worker process died"))
+                    results.append(_failed(futures[future], "worker process died"))
+                except Exception as err:
+                    results.append(_failed(futures[future], f"{type(err).__name__}: {err}"))
                 bar.update()
     bar.close()
     order = {(j.split, j.name): i for i, j in enumerate(jobs)}

@@ -1,0 +1,110 @@
+"""The evaluation harness: a real one-episode rollout with a tiny model, worker failures, bad inputs."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+import torch
+
+from tax3d import config as cfg
+from tax3d.cli import main
+from tax3d.evaluate import Args, EvalJob, evaluate, format_table, run_jobs, summarise
+from tax3d.model.tax3d import Tax3D
+from tax3d.sim.cloth import SIMPLE_CLOTH
+
+
+def tiny_checkpoint(path, variant="cd", **data):
+    torch.manual_seed(0)
+    config = cfg.validate(cfg.Config(
+        model=cfg.ModelConfig(variant=variant, hidden_size=16, depth=1, num_heads=2),
+        diffusion=cfg.DiffusionConfig(num_timesteps=100, sample_steps=5),
+        data=cfg.DataConfig(num_action_points=64, num_anchor_points=64, **data),
+    ))
+    Tax3D(config).save_pretrained(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    # An untrained network denoises to large values; a large target scale shrinks them, so the predicted goal stays
+    # near the anchor and the rollout runs its full length.
+    return tiny_checkpoint(tmp_path_factory.mktemp("ckpt"), target_scale=1000.0)
+
+
+def test_one_episode_rollout_and_report(checkpoint, tmp_path):
+    out = evaluate(Args(checkpoint=checkpoint, splits="unseen", episodes=1, workers=1, samples=2, out=tmp_path),
+                   progress=False)
+    (episode,) = out["results"]
+    assert isinstance(episode["success"], bool) and not episode.get("error")
+    assert episode["pred_goal"].shape == (2, 580, 3)  # the full action cloud, two samples
+    assert episode["released_pc"].shape == (580, 3) and episode["predict_seconds"] > 0
+    assert episode["denoising"].shape == (6, 580, 3)  # noise, then 5 denoising steps
+    summary = json.loads((tmp_path / "results.json").read_text())["summary"]
+    assert summary["splits"]["unseen"]["episodes"] == 1 and summary["variant"] == "cd"
+    assert summary["splits"]["unseen"]["rmse"] is None  # fresh poses carry no ground-truth goal
+    assert (tmp_path / "report.html").exists()
+    assert "Success rate" in format_table(summary["splits"])
+
+
+def die(job):
+    if job.name == "episode_1":
+        os._exit(3)
+    return {"split": job.split, "name": job.name, "success": True, "exploded": False, "rmse": 0.5, "min_rmse": 0.5,
+            "predict_seconds": 0.1, "sim_seconds": 1.0, "checks": {}, "action_pc": None, "anchor_pc": None,
+            "pred_goal": None, "true_goal": None, "released_pc": None, "grip_vertices": [], "denoising": None,
+            "cloth_key": job.name}
+
+
+def raises(job):
+    raise RuntimeError("simulated failure")
+
+
+def test_dead_worker_and_raising_episode_are_marked_failed():
+    jobs = [EvalJob("unseen", f"episode_{i}", SIMPLE_CLOTH, 0.0, [0, 0, 0], True, "none") for i in range(3)]
+    results = run_jobs(jobs, workers=2, progress=False, fn=die)
+    assert [r["name"] for r in results] == ["episode_0", "episode_1", "episode_2"]
+    dead = [r for r in results if r.get("error")]
+    assert dead and all("died" in r["error"] and not r["success"] for r in dead)
+    results = run_jobs(jobs[:1], workers=1, progress=False, fn=raises)
+    assert results[0]["error"] == "RuntimeError: simulated failure"
+    table = summarise(results, ["unseen"])
+    assert table["unseen"]["success_rate"] == 0.0 and table["unseen"]["failed_runs"] == 1
+
+
+def test_coverage_and_precision_over_a_clothes_goals():
+    goal_a, goal_b = np.zeros((4, 3)), np.ones((4, 3))
+    rows = [
+        {"split": "unseen", "success": True, "exploded": False, "rmse": 0.0, "predict_seconds": 0, "sim_seconds": 0,
+         "cloth_key": "c0", "true_goal": goal, "pred_goal": np.stack([goal_a, goal_a + 0.1])}
+        for goal in (goal_a, goal_b)
+    ]
+    table = summarise(rows, ["unseen"])["unseen"]
+    # coverage: goal_a is hit exactly, goal_b at best from goal_a + 0.1 (distance sqrt(3) * 0.9)
+    assert table["coverage_rmse"] == pytest.approx((0.0 + np.sqrt(3) * 0.9) / 2)
+    # precision: every sample is closest to goal_a: samples 0, 0.1 sqrt(3), repeated for both rows
+    assert table["precision_rmse"] == pytest.approx(np.sqrt(3) * 0.1 / 2)
+
+
+def one_line_error(capsys, argv):
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+def test_bad_inputs(capsys, checkpoint, tmp_path):
+    assert "no such checkpoint" in one_line_error(capsys, ["eval", "--checkpoint", str(tmp_path / "nope")])
+    (tmp_path / "empty_ckpt").mkdir()
+    assert "incomplete checkpoint" in one_line_error(capsys, ["eval", "--checkpoint", str(tmp_path / "empty_ckpt")])
+    err = one_line_error(capsys, ["eval", "--checkpoint", str(checkpoint), "--episodes", "0", "--out", str(tmp_path)])
+    assert "--episodes 0" in err
+    data = tmp_path / "data"
+    (data / "unseen").mkdir(parents=True)
+    err = one_line_error(capsys, ["eval", "--checkpoint", str(checkpoint), "--data", str(data), "--splits", "unseen",
+                                  "--out", str(tmp_path)])
+    assert "no demo_N.npz" in err
+    other = tiny_checkpoint(tmp_path / "other", task="hangproccloth-multimodal")
+    err = one_line_error(capsys, ["eval", "--checkpoint", str(other), "--task", "hangproccloth-simple",
+                                  "--out", str(tmp_path)])
+    assert "trained for task 'hangproccloth-multimodal'" in err
