@@ -46,6 +46,8 @@ class Args:
     """closed loop: predict again every K environment steps (0: open loop, the paper's policy)"""
     workers: int = 2
     """worker processes, each with its own simulator and a copy of the model"""
+    first_index: int = 0
+    """index of the first fresh episode of each split, for splits without a demo folder"""
     seed: int = 0
     out: Path = Path("out/eval")
     """output folder: results.json, results.md, report.html, images/"""
@@ -146,7 +148,7 @@ def plan_jobs(args: Args) -> list[EvalJob]:
                                     seed=args.seed + i, **common))
         else:
             num = task.sizes[split.name] if args.episodes is None else args.episodes
-            for i in range(num):
+            for i in range(args.first_index, args.first_index + num):
                 params = episode_params(task, split, i // task.demos_per_cloth)
                 jobs.append(EvalJob(split.name, f"episode_{i}", params.cloth_params, params.rot_z,
                                     params.trans.tolist(), True, seed=args.seed + i, **common))
