@@ -1,0 +1,176 @@
+import re
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from tax3d.report import _pick_figures, denoising_figure, denoising_gif, write_report
+
+N, M, S, K = 50, 80, 3, 5
+SPLITS = ("train", "unseen", "ood")
+MAX_FIGURES = 4
+TITLE = "<script>alert(1)</script> & evaluation"
+PLOTLY_MARKER = "* plotly.js v"
+
+
+def _episode(rng, split, name, success, exploded=False, true_goal=True, denoising=False) -> dict:
+    action = rng.normal([0, 5, 8], [2, 0.01, 2], (N, 3))
+    anchor = rng.normal([0, 0, 4], [0.3, 0.3, 2.5], (M, 3))
+    goal = action + [0, -5, -1]
+    episode = dict(split=split, name=name, success=success, exploded=exploded, rmse=None if exploded else 0.1234,
+                   action_pc=action, anchor_pc=anchor, pred_goal=goal + rng.normal(0, 0.1, (S, N, 3)),
+                   true_goal=goal if true_goal else None, released_pc=None if exploded else goal - [0, 0, 0.5],
+                   grip_vertices=[0, N - 1])
+    if denoising:
+        noise = goal + rng.normal(0, 3, (N, 3))
+        episode["denoising"] = np.stack([noise + t / (K - 1) * (goal - noise) for t in range(K)])
+    return episode
+
+
+def _episodes() -> list[dict]:
+    rng = np.random.default_rng(0)
+    episodes = [
+        _episode(rng, "train", "demo_0", True, denoising=True),
+        _episode(rng, "train", "demo_1", False, true_goal=False),
+        _episode(rng, "train", "demo_2", True),
+        _episode(rng, "unseen", "demo_0", False),
+        _episode(rng, "unseen", "demo_1", True, true_goal=False),
+        _episode(rng, "ood", "demo_0", False, exploded=True),
+        _episode(rng, "ood", "demo_1", True),
+    ]
+    episodes[3]["pred_goal"][0, :5] = np.nan  # non-finite points must be dropped, not crash the page
+    episodes[4]["action_pc"][7] = np.inf
+    return episodes
+
+
+def _summary() -> dict:
+    splits = {split: dict(episodes=2, success_rate=0.5, rmse=0.12345, coverage_rmse=None, precision_rmse=None,
+                          predict_seconds=1.25, sim_seconds=10.0) for split in SPLITS}
+    splits["ood"]["rmse"] = None
+    splits["train"]["coverage_rmse"] = 0.0456
+    return dict(checkpoint="runs/a.safetensors", task="hangproccloth-simple", variant="cross-displacement",
+                command="tax3d evaluate <x>", machine="cpu", date="2025-01-01", splits=splits)
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory) -> Path:
+    out_dir = tmp_path_factory.mktemp("report") / "out"
+    return write_report(out_dir, _summary(), _episodes(), title=TITLE, max_figures=MAX_FIGURES)
+
+
+class _TagCounter(HTMLParser):
+    TAGS = ("html", "body", "table", "div")
+
+    def __init__(self):
+        super().__init__()
+        self.opened = dict.fromkeys(self.TAGS, 0)
+        self.closed = dict.fromkeys(self.TAGS, 0)
+        self.images = []
+
+    def handle_starttag(self, tag, attrs):
+        if tag in self.opened:
+            self.opened[tag] += 1
+        if tag == "img":
+            self.images.append(dict(attrs)["src"])
+
+    def handle_endtag(self, tag):
+        if tag in self.closed:
+            self.closed[tag] += 1
+
+
+def _parse(page: str) -> _TagCounter:
+    parser = _TagCounter()
+    parser.feed(page)
+    parser.close()
+    return parser
+
+
+def test_page_is_well_formed(report):
+    assert report.name == "report.html" and report.is_file()
+    parser = _parse(report.read_text())
+    assert parser.opened == parser.closed
+    assert parser.opened["html"] == parser.opened["body"] == 1
+    assert parser.opened["table"] >= 2  # results and the remaining episodes
+
+
+def test_one_plotly_bundle_and_capped_figures(report):
+    page = report.read_text()
+    assert page.count(PLOTLY_MARKER) == 1
+    shown = sum(not e["exploded"] for e in _episodes())
+    assert page.count('class="plotly-graph-div"') == min(MAX_FIGURES, shown) + 1  # + the denoising animation
+
+
+def test_figures_spread_over_splits_failures_first():
+    episodes = _episodes()
+    chosen = _pick_figures(episodes, list(SPLITS), MAX_FIGURES)
+    assert [len(chosen[s]) for s in SPLITS] == [2, 1, 1]
+    assert [episodes[i]["name"] for i in chosen["train"]] == ["demo_1", "demo_0"]
+    assert all(not episodes[i]["exploded"] for ids in chosen.values() for i in ids)
+
+
+def test_images_exist(report):
+    out_dir = report.parent
+    sources = _parse(report.read_text()).images
+    assert sources and all(not s.startswith(("/", "http")) for s in sources)
+    assert all((out_dir / s).is_file() for s in sources)
+    released = sorted(p.name for p in (out_dir / "images").glob("*_released.png"))
+    assert len(released) == sum(not e["exploded"] for e in _episodes())
+    assert "ood_demo_0_released.png" not in released  # exploded: no picture
+    with Image.open(out_dir / "images" / released[0]) as image:
+        assert image.size == (400, 300)
+    with Image.open(out_dir / "images" / "overview.png") as image:
+        assert image.size[0] >= 400
+
+
+def test_exploded_episode_listed_as_failed(report):
+    page = report.read_text()
+    assert "failure (exploded)" in page
+
+
+def test_results_markdown(report):
+    text = (report.parent / "results.md").read_text()
+    header = next(line for line in text.splitlines() if line.startswith("| |"))
+    assert [c.strip() for c in header.strip("|").split("|")][1:] == list(SPLITS)
+    assert re.search(r"\| RMSE \(.\) \| 0\.123 \| 0\.123 \| \u2014 \|", text)
+    assert re.search(r"\| Success rate \(.\) \| 0\.50 \| 0\.50 \| 0\.50 \|", text)
+    assert re.search(r"\| Coverage RMSE \(.\) \| 0\.046 \| \u2014 \| \u2014 \|", text)
+    assert "Precision RMSE" not in text
+    assert "runs/a.safetensors" in text and "cross-displacement" in text
+
+
+def test_no_temporary_files(report):
+    leftovers = [p for p in report.parent.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
+    assert leftovers == []
+
+
+def test_strings_are_escaped(report):
+    page = report.read_text()
+    assert "<script>alert(1)</script>" not in page
+    assert "&lt;script&gt;alert(1)&lt;/script&gt; &amp; evaluation" in page
+    assert "tax3d evaluate &lt;x&gt;" in page
+
+
+def test_denoising_figure_has_one_frame_per_step():
+    episode = _episodes()[0]
+    fig = denoising_figure(episode["denoising"], episode["anchor_pc"])
+    assert len(fig.frames) == K
+    assert fig.layout.sliders and len(fig.layout.sliders[0].steps) == K
+
+
+def test_denoising_gif(tmp_path):
+    episode = _episodes()[0]
+    path = denoising_gif(tmp_path / "denoising.gif", episode["denoising"], episode["anchor_pc"])
+    with Image.open(path) as image:
+        assert image.format == "GIF" and image.n_frames == K
+    assert [p.name for p in tmp_path.iterdir()] == ["denoising.gif"]
+
+
+def test_empty_episodes_still_write_the_table(tmp_path):
+    page = write_report(tmp_path / "empty", _summary(), []).read_text()
+    parser = _parse(page)
+    assert parser.opened == parser.closed and parser.opened["table"] == 1
+    assert "plotly-graph-div" not in page and "0.123" in page
+    assert (tmp_path / "empty" / "results.md").is_file()
+    assert (tmp_path / "empty" / "images" / "overview.png").is_file()
