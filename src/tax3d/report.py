@@ -377,7 +377,8 @@ def _pick_figures(episodes: list[dict], splits: list[str], max_figures: int) -> 
     queues = {}
     for split in splits:
         mine = [i for i, e in enumerate(episodes) if e["split"] == split and not e.get("exploded")]
-        queues[split] = [i for i in mine if not episodes[i].get("success")] + [i for i in mine if episodes[i].get("success")]
+        failures = [i for i in mine if not episodes[i].get("success")]
+        queues[split] = failures + [i for i in mine if i not in failures]
     chosen = {split: [] for split in splits}
     left = max(int(max_figures), 0)
     while left and any(queues.values()):
@@ -406,7 +407,9 @@ def _image_names(episodes: list[dict]) -> dict[int, str]:
 def _episode_card(episode: dict, image: str | None) -> str:
     text, css = _verdict(episode)
     samples = _goal_samples(episode.get("pred_goal"))
-    shown = f"{min(len(samples), MAX_SAMPLES_SHOWN)} of {len(samples)}" if len(samples) > MAX_SAMPLES_SHOWN else str(len(samples))
+    shown = str(len(samples))
+    if len(samples) > MAX_SAMPLES_SHOWN:
+        shown = f"{MAX_SAMPLES_SHOWN} of {len(samples)}"
     picture = (f'<img src="images/{html.escape(image)}" alt="{html.escape(str(episode["name"]))} after release" '
                f'width="400" height="300">' if image else "<p>no picture of the released cloth</p>")
     return (f'<div class="episode"><h4>{html.escape(str(episode["name"]))}: '
@@ -462,7 +465,9 @@ def report_html(summary: dict, episodes: list[dict], title: str, figures: dict[s
         body.append("<p>No episodes.</p>")
     body.append(_denoising_section(episodes))
     page = "\n".join(body)
-    bundle = f'<script type="text/javascript">{plotly.offline.get_plotlyjs()}</script>' if "plotly-graph-div" in page else ""
+    bundle = ""
+    if "plotly-graph-div" in page:  # plotly.js once, in the head, for every figure below
+        bundle = f'<script type="text/javascript">{plotly.offline.get_plotlyjs()}</script>'
     return (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n<title>{html.escape(title)}</title>\n'
             f"<style>{STYLE}</style>\n{bundle}\n</head>\n<body>\n{page}\n</body>\n</html>\n")
 
