@@ -37,6 +37,9 @@ class DiffusionConfig:
 
     num_timesteps: int = 100
     learn_sigma: bool = True
+    prediction: Literal["epsilon", "sample"] = "epsilon"
+    """what the network outputs: the noise (the paper) or the clean target x_0, turned into the noise
+    estimate eps = (x_t / sqrt(abar_t) - x_0) / sqrt(1 / abar_t - 1) so that loss and samplers are unchanged"""
     sample_steps: int = 100
     """denoising steps at prediction: fewer than num_timesteps respaces the schedule"""
     sampler: Literal["ddpm", "ddim"] = "ddpm"
@@ -107,9 +110,10 @@ def cpu() -> Config:
     """Settings that learn quickly on a 2-core CPU; each difference from `paper` is measured in docs/training.md."""
     return Config(
         model=ModelConfig(hidden_size=64, depth=3, num_heads=4),
-        data=DataConfig(num_action_points=256, num_anchor_points=256, target_scale=0.25, rotate=False),
-        train=TrainConfig(lr=1e-3, warmup_steps=100, batch_size=16, steps=4000, val_every=500, val_samples=5,
-                          val_demos=0, ema=0.0, threads=2),
+        diffusion=DiffusionConfig(prediction="sample"),
+        data=DataConfig(num_action_points=256, num_anchor_points=256, rotate=False),
+        train=TrainConfig(lr=1e-3, steps=4000, val_every=500, val_samples=2, val_demos=10, threads=1,
+                          num_workers=1),
     )
 
 

@@ -61,9 +61,21 @@ class Tax3D(nn.Module):
         """model_fn(x_t, t) for the diffusion: action (B, N, 3) and anchor (B, M, 3) in the variant's frames."""
         if self.spec.scene:
             scene = torch.cat([action, anchor], dim=1)  # (B, N + M, 3)
-            return lambda x, t: self.net(x, t, scene)
+            return self._as_epsilon(lambda x, t: self.net(x, t, scene))
         context = action if self.spec.action_context else None
-        return lambda x, t: self.net(x, t, context, anchor)
+        fn = lambda x, t: self.net(x, t, context, anchor)
+        return self._as_epsilon(fn) if self.spec.diffusion else fn
+
+    def _as_epsilon(self, fn):
+        if self.config.diffusion.prediction == "epsilon":
+            return fn
+
+        def eps_fn(x: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+            out = fn(x, t)  # t are the model's (unrespaced) timesteps, so the base schedule applies
+            eps = self.diffusion.predict_eps_from_xstart(x, t, out[..., :3])
+            return torch.cat([eps, out[..., 3:]], dim=-1)
+
+        return eps_fn
 
     def regress(self, action: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
         """RD/RP: one forward pass; the network's noised input is zeros, its output the target (B, N, 3)."""

@@ -1,0 +1,130 @@
+"""Training-step time and FLOP rate at the paper's configuration, and prediction latency and RMSE of 100 vs 10 steps.
+
+    python benchmarks/model.py [--threads 1] [--checkpoint checkpoints/tax3d-cd-official-simple] [--samples 3]
+
+Prints one JSON object. The FLOP rate is compared with this machine's float32 matmul peak measured in the same run
+(a timed 2048 x 2048 torch.mm), so the ratio holds on a shared, noisy machine. The prediction part uses the shipped
+checkpoint on the official `val` split and is skipped, with a note, where the data is absent.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.flop_counter import FlopCounterMode
+
+from tax3d import config as cfg
+from tax3d.data.dataset import demo_files
+from tax3d.data.format import load_demo
+from tax3d.metrics import min_of_samples_rmse, rmse
+from tax3d.model.tax3d import Tax3D
+
+ROOT = Path(__file__).resolve().parents[1]
+OFFICIAL_VAL = ROOT.parent / "shared" / "data" / "tax3d-official" / "hangproccloth-simple" / "val"
+
+
+def best_time(fn, repeats: int) -> float:
+    """The fastest of `repeats` calls, in seconds (the least disturbed by other processes)."""
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def matmul_peak(n: int = 2048, repeats: int = 5) -> float:
+    a, b = torch.randn(n, n), torch.randn(n, n)
+    torch.mm(a, b)
+    return 2 * n**3 / best_time(lambda: torch.mm(a, b), repeats)
+
+
+def training_step(repeats: int) -> dict:
+    """One AdamW step of TAX3D-CD at the paper's size on a batch of 16 scenes of 512 action + 512 anchor points."""
+    config = cfg.paper()
+    torch.manual_seed(0)
+    model = Tax3D(config)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=1e-4, weight_decay=1e-5)
+    B, N = config.train.batch_size, config.data.num_action_points
+    batch = {"action": torch.randn(B, N, 3), "anchor": torch.randn(B, config.data.num_anchor_points, 3),
+             "target": torch.randn(B, N, 3)}
+
+    def step():
+        losses = model.loss(batch)
+        optimizer.zero_grad(set_to_none=True)
+        losses["loss"].backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        optimizer.step()
+
+    step()
+    with FlopCounterMode(display=False) as counter:
+        losses = model.loss(batch)
+        losses["loss"].backward()
+    flops = counter.get_total_flops()
+    seconds = best_time(step, repeats)
+    return {"seconds": seconds, "flops": flops, "flop_rate": flops / seconds}
+
+
+def prediction(checkpoint: Path, samples: int, repeats: int) -> dict:
+    model = Tax3D.from_pretrained(checkpoint)
+    result = {"checkpoint": str(checkpoint.relative_to(ROOT) if checkpoint.is_relative_to(ROOT) else checkpoint)}
+    if not OFFICIAL_VAL.is_dir():
+        result["note"] = f"official val split not found at {OFFICIAL_VAL}: latency on a synthetic scene, no RMSE"
+        demos = [{"action_pc": np.random.default_rng(0).normal(size=(580, 3)),
+                  "anchor_pc": np.random.default_rng(1).normal(size=(1301, 3)), "flow": None}]
+    else:
+        demos = [load_demo(p) for p in demo_files(OFFICIAL_VAL)]
+    first = demos[0]
+    for name, steps, sampler in (("ddpm_100", 100, "ddpm"), ("ddpm_10", 10, "ddpm"), ("ddim_10", 10, "ddim")):
+        entry = {"latency_s": best_time(lambda: model.predict(first["action_pc"], first["anchor_pc"], steps=steps,
+                                                              sampler=sampler, seed=0), repeats)}
+        if first["flow"] is not None:
+            goals = model.predict_scenes([(d["action_pc"], d["anchor_pc"]) for d in demos], num_samples=samples,
+                                         steps=steps, sampler=sampler, seed=0)
+            truth = [d["action_pc"] + d["flow"] for d in demos]
+            entry["rmse_min_of_samples"] = float(np.mean([min_of_samples_rmse(g, t) for g, t in zip(goals, truth)]))
+            entry["rmse_mean"] = float(np.mean([rmse(g, t).mean() for g, t in zip(goals, truth)]))
+        result[name] = entry
+    result["speedup_10_vs_100"] = result["ddpm_100"]["latency_s"] / result["ddpm_10"]["latency_s"]
+    if "rmse_min_of_samples" in result["ddpm_100"]:
+        base = result["ddpm_100"]["rmse_min_of_samples"]
+        for name in ("ddpm_10", "ddim_10"):
+            result[f"rmse_ratio_{name}_vs_100"] = result[name]["rmse_min_of_samples"] / base
+    result["demos"], result["samples_per_demo"], result["action_points"] = len(demos), samples, len(first["action_pc"])
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    parser.add_argument("--checkpoint", type=Path, default=ROOT / "checkpoints" / "tax3d-cd-official-simple")
+    parser.add_argument("--samples", type=int, default=3, help="samples per val demo for the RMSE")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    if args.threads > 0:
+        torch.set_num_threads(args.threads)
+
+    peak = matmul_peak()
+    train = training_step(args.repeats)
+    out = {
+        "machine": f"{platform.machine()}, {torch.get_num_threads()} torch threads, torch {torch.__version__}",
+        "matmul_peak_gflops": peak / 1e9,
+        "train_step": {"config": "paper: TAX3D-CD, hidden 128, depth 5, batch 16, 512 + 512 points",
+                       "seconds": train["seconds"], "gflop": train["flops"] / 1e9,
+                       "gflops": train["flop_rate"] / 1e9, "fraction_of_peak": train["flop_rate"] / peak},
+    }
+    if args.checkpoint.is_dir():
+        out["predict"] = prediction(args.checkpoint, args.samples, args.repeats)
+    else:
+        out["predict"] = {"note": f"no checkpoint at {args.checkpoint}"}
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
