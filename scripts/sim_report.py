@@ -41,10 +41,10 @@ def main() -> None:
                 lines.append(f"| {split} | {r['episodes']} | {r['expert_success']:.2f} | {r['goal_rmse_mean']:.3f} | "
                              f"{r['goal_rmse_median']:.3f} | {r['goal_rmse_max']:.3f} | {r['goal_rmse_under_0.5']} |")
         lines.append("")
-    rates = load("expert_rates.json")
-    if rates:
-        lines += ["## Pseudo-expert success rate", "", provenance(rates), "",
-                  "| task | split | episodes | success rate | exploded | s / episode (2 workers) |",
+    for path in sorted(RESULTS.glob("expert_rates*.json")):
+        rates = json.loads(path.read_text())
+        lines += [f"## Pseudo-expert success rate ({path.name})", "", provenance(rates), "",
+                  "| task | split | episodes | success rate | exploded | s per episode inside a worker (CPU shared with other jobs) |",
                   "| --- | --- | --- | --- | --- | --- |"]
         for r in rates["rates"]:
             lines.append(f"| {r['task']} | {r['split']} | {r['episodes']} | {r['success_rate']:.2f} | "
