@@ -110,3 +110,15 @@ def test_short_episode_with_trajectory_and_explosion(monkeypatch):
         monkeypatch.setattr(env, "cloth_vertices", blow_up)
         ep = run_episode(env, SIMPLE_CLOTH, 0.3, [2.0, -4.0, 0.0], expert_policy(), steps=15)
         assert ep.exploded and not ep.success and ep.goal_pc is None
+
+
+def test_each_reset_loads_its_own_cloth():
+    from tax3d.sim.cloth import DOUBLE_HOLE_CLOTH, build_cloth
+    from tax3d.sim.env import HangClothEnv
+
+    with HangClothEnv() as env:
+        for params in (SIMPLE_CLOTH, DOUBLE_HOLE_CLOTH, {**SIMPLE_CLOTH, "w": 0.8, "h": 1.2}):
+            state = env.reset(params, 0.0, [0.0, 0.0, 0.0])
+            assert len(state.cloth) == build_cloth(params).num_vertices
+            extent = state.cloth.max(0) - state.cloth.min(0)  # rows span 6 w in z, columns 6 h in x
+            assert np.allclose(extent[[0, 2]], [6 * params["h"], 6 * params["w"]], atol=1e-3)

@@ -73,6 +73,7 @@ class HangClothEnv:
         self.gripper_ids: list[int] = []
         self.anchor_ids: tuple[int, int] = (-1, -1)
         self.rot_z, self.trans = 0.0, np.zeros(3)
+        self.resets = 0
         self._finalizer = weakref.finalize(self, _release, self.client, self.tmpdir)
 
     def close(self) -> None:
@@ -96,7 +97,10 @@ class HangClothEnv:
         if self.floor:
             add_floor(c)
         self.anchor_ids = load_anchor(c, self.rot_z, self.trans)
-        obj = os.path.join(self.tmpdir, "cloth.obj")
+        # A new file name per reset: PyBullet caches loaded meshes by file name, so reusing one would load the
+        # previous cloth again.
+        self.resets += 1
+        obj = os.path.join(self.tmpdir, f"cloth_{self.resets}.obj")
         with open(obj, "w") as f:
             f.write(self.mesh.obj_text())
         self.cloth_id = pybullet.loadSoftBody(
@@ -115,6 +119,7 @@ class HangClothEnv:
         vertices = self.cloth_vertices()
         if len(vertices) != self.mesh.num_vertices:
             raise RuntimeError(f"soft body has {len(vertices)} vertices, mesh file {self.mesh.num_vertices}")
+        os.unlink(obj)
         self.gripper_ids = []
         for v in self.mesh.grip_vertices():
             shape = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=GRIPPER_RADIUS, physicsClientId=c)
