@@ -10,3 +10,13 @@ def official_dir() -> Path:
     if not OFFICIAL.is_dir():
         pytest.skip(f"official demonstrations not found at {OFFICIAL}")
     return OFFICIAL
+
+
+@pytest.fixture(scope="session")
+def generated(tmp_path_factory):
+    """One real, full-length expert episode of HangProcCloth-simple (about 10 s), shared by the tests that need one."""
+    from tax3d.sim.generate import Args, generate
+
+    out = tmp_path_factory.mktemp("demos")
+    stats = generate(Args(task="hangproccloth-simple", split="unseen", num=1, out=out), progress=False)
+    return out, stats

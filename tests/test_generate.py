@@ -51,14 +51,6 @@ def test_replay_bad_inputs(capsys, tmp_path):
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
 
 
-@pytest.fixture(scope="module")
-def generated(tmp_path_factory):
-    """One real, full-length expert episode of HangProcCloth-simple (about 10 s)."""
-    out = tmp_path_factory.mktemp("demos")
-    stats = generate(Args(task="hangproccloth-simple", split="unseen", num=1, out=out), progress=False)
-    return out, stats
-
-
 def test_generated_demo_is_valid_and_complete(generated):
     out, stats = generated
     assert stats["written"] == 1 and stats["failed"] == []

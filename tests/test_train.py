@@ -20,7 +20,8 @@ from tests.test_model_api import synthetic_demo
 
 TINY = ["--preset", "cpu", "--model.hidden_size", "32", "--model.depth", "2", "--model.num_heads", "2",
         "--data.num_action_points", "16", "--data.num_anchor_points", "24", "--data.train_size", "16",
-        "--train.batch_size", "8", "--train.threads", "1", "--train.val_samples", "2"]
+        "--train.batch_size", "8", "--train.threads", "1", "--train.num_workers", "0",
+        "--train.val_samples", "2", "--train.val_demos", "0"]
 
 
 @pytest.fixture
