@@ -41,6 +41,8 @@ def main() -> None:
                 lines.append(f"| {split} | {r['episodes']} | {r['expert_success']:.2f} | {r['goal_rmse_mean']:.3f} | "
                              f"{r['goal_rmse_median']:.3f} | {r['goal_rmse_max']:.3f} | {r['goal_rmse_under_0.5']} |")
         lines.append("")
+    lines += ["The seconds in the expert tables were measured inside the workers while other jobs shared the CPU (one run",
+              "was paused part-way); they are not speed figures: see the Speed section.", ""]
     for path in sorted(RESULTS.glob("expert_rates*.json")):
         rates = json.loads(path.read_text())
         lines += [f"## Pseudo-expert success rate ({path.name})", "", provenance(rates), "",
