@@ -67,7 +67,7 @@ def run(args: Args) -> int:
     started = time.time()
     scenes = [(d["action_pc"], d["anchor_pc"]) for d in demos]
     goals = model.predict_scenes(scenes, num_samples=args.samples, steps=args.steps, sampler=args.sampler,
-                                 seed=args.seed, batch_scenes=args.batch_scenes)
+                                 seed=args.seed, batch_scenes=args.batch_scenes, progress=True)
     seconds = time.time() - started
     errors = np.stack([rmse(g, d["action_pc"] + d["flow"]) for g, d in zip(goals, demos)])  # (D, K)
 

@@ -176,10 +176,12 @@ class Tax3D(nn.Module):
 
     @torch.no_grad()
     def predict_scenes(self, scenes, num_samples: int = 1, steps: int | None = None, sampler: str | None = None,
-                       seed: int = 0, batch_scenes: int = 8) -> list[np.ndarray]:
+                       seed: int = 0, batch_scenes: int = 8, progress: bool = False) -> list[np.ndarray]:
         """predict for many (action_points, anchor_points) scenes: a list of (num_samples, N_i, 3) numpy arrays.
 
         Scenes with the same number of action points are denoised together, batch_scenes at a time."""
+        from tqdm.auto import tqdm
+
         generator = self._generator(None, seed)
         frames = [self._frames(action, anchor, generator) for action, anchor in scenes]
         results: list[np.ndarray | None] = [None] * len(frames)
@@ -187,15 +189,15 @@ class Tax3D(nn.Module):
         for i, f in enumerate(frames):
             by_size.setdefault((f["action"].shape[0], f["anchor"].shape[0]), []).append(i)
         scale = self.config.data.target_scale
-        for indices in by_size.values():
-            for start in range(0, len(indices), batch_scenes):
-                chunk = indices[start:start + batch_scenes]
-                stacked = {k: torch.stack([frames[i][k] for i in chunk]).repeat_interleave(num_samples, 0)
-                           for k in frames[chunk[0]]}  # (C * K, ...)
-                out = self.sample(stacked["action"], stacked["anchor"], steps, sampler, generator)
-                goals = to_world(out, stacked, self.spec, scale).reshape(len(chunk), num_samples, -1, 3)
-                for i, g in zip(chunk, goals.cpu().numpy()):
-                    results[i] = g
+        chunks = [indices[start:start + batch_scenes] for indices in by_size.values()
+                  for start in range(0, len(indices), batch_scenes)]
+        for chunk in tqdm(chunks, desc="predict", unit="batch", disable=not progress, leave=False):
+            stacked = {k: torch.stack([frames[i][k] for i in chunk]).repeat_interleave(num_samples, 0)
+                       for k in frames[chunk[0]]}  # (C * K, ...)
+            out = self.sample(stacked["action"], stacked["anchor"], steps, sampler, generator)
+            goals = to_world(out, stacked, self.spec, scale).reshape(len(chunk), num_samples, -1, 3)
+            for i, g in zip(chunk, goals.cpu().numpy()):
+                results[i] = g
         return results
 
     # --- checkpoints -----------------------------------------------------------------------------------------------
