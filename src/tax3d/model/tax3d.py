@@ -95,6 +95,17 @@ class Tax3D(nn.Module):
         losses = self.diffusion.training_losses(self.model_fn(action, anchor), target, t, noise)
         return {k: v.mean() for k, v in losses.items()}
 
+    def sampling(self, steps: int | None, sampler: str | None) -> tuple[int, str]:
+        """The number of steps and the sampler to use (the config's by default), checked."""
+        steps = self.config.diffusion.sample_steps if steps is None else int(steps)
+        sampler = self.config.diffusion.sampler if sampler is None else sampler
+        T = self.diffusion.num_timesteps
+        if not 1 <= steps <= T:
+            raise UsageError(f"--steps {steps}: expected a number of denoising steps in [1, {T}]")
+        if sampler not in ("ddpm", "ddim"):
+            raise UsageError(f"--sampler {sampler!r}: expected ddpm or ddim")
+        return steps, sampler
+
     @torch.no_grad()
     def sample(self, action: torch.Tensor, anchor: torch.Tensor, steps: int | None = None, sampler: str | None = None,
                generator: torch.Generator | None = None, return_trajectory: bool = False):
@@ -104,13 +115,8 @@ class Tax3D(nn.Module):
         if not self.spec.diffusion:
             out = self.regress(action, anchor)
             return (out, out[None]) if return_trajectory else out
-        steps = self.config.diffusion.sample_steps if steps is None else int(steps)
-        sampler = self.config.diffusion.sampler if sampler is None else sampler
+        steps, sampler = self.sampling(steps, sampler)
         T = self.diffusion.num_timesteps
-        if not 1 <= steps <= T:
-            raise UsageError(f"--steps {steps}: expected a number of denoising steps in [1, {T}]")
-        if sampler not in ("ddpm", "ddim"):
-            raise UsageError(f"--sampler {sampler!r}: expected ddpm or ddim")
         diffusion = self.diffusion if steps == T else self.diffusion.respace(steps)
         n = action.shape[1] + (anchor.shape[1] if self.spec.scene else 0)
         shape = (action.shape[0], n, 3)
@@ -182,6 +188,8 @@ class Tax3D(nn.Module):
         Scenes with the same number of action points are denoised together, batch_scenes at a time."""
         from tqdm.auto import tqdm
 
+        if self.spec.diffusion:
+            self.sampling(steps, sampler)
         generator = self._generator(None, seed)
         frames = [self._frames(action, anchor, generator) for action, anchor in scenes]
         results: list[np.ndarray | None] = [None] * len(frames)
