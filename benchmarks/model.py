@@ -10,14 +10,17 @@ checkpoint on the official `val` split and is skipped, with a note, where the da
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
+import os
 import platform
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
-from torch.utils.flop_counter import FlopCounterMode
+from torch.utils.flop_counter import FlopCounterMode, sdpa_backward_flop_count, sdpa_flop_count
 
 from tax3d import config as cfg
 from tax3d.data.dataset import demo_files
@@ -45,9 +48,24 @@ def matmul_peak(n: int = 2048, repeats: int = 5) -> float:
     return 2 * n**3 / best_time(lambda: torch.mm(a, b), repeats)
 
 
-def training_step(repeats: int) -> dict:
-    """One AdamW step of TAX3D-CD at the paper's size on a batch of 16 scenes of 512 action + 512 anchor points."""
-    config = cfg.paper()
+def _attention_flops(q, k, v, *args, **kwargs) -> int:
+    return sdpa_flop_count(q, k, v)
+
+
+def _attention_backward_flops(grad_out, q, k, v, *args, **kwargs) -> int:
+    return sdpa_backward_flop_count(grad_out, q, k, v)
+
+
+# torch's counter has no formula for the CPU flash-attention kernels; the standard ones (2 matmuls forward, 4 backward)
+ATTENTION_FLOPS = {
+    torch.ops.aten._scaled_dot_product_flash_attention_for_cpu: _attention_flops,
+    torch.ops.aten._scaled_dot_product_flash_attention_for_cpu_backward: _attention_backward_flops,
+}
+
+
+def training_step(repeats: int, config: cfg.Config | None = None) -> dict:
+    """One AdamW step of TAX3D-CD (default: the paper's configuration, batch 16, 512 action + 512 anchor points)."""
+    config = config or cfg.paper()
     torch.manual_seed(0)
     model = Tax3D(config)
     optimizer = torch.optim.AdamW(model.parameters(), lr=1e-4, weight_decay=1e-5)
@@ -63,12 +81,34 @@ def training_step(repeats: int) -> dict:
         optimizer.step()
 
     step()
-    with FlopCounterMode(display=False) as counter:
+    with FlopCounterMode(display=False, custom_mapping=ATTENTION_FLOPS) as counter:
         losses = model.loss(batch)
         losses["loss"].backward()
     flops = counter.get_total_flops()
+    by_op = {str(op): n for op, n in counter.get_flop_counts()["Global"].items()}
     seconds = best_time(step, repeats)
-    return {"seconds": seconds, "flops": flops, "flop_rate": flops / seconds}
+    return {"seconds": seconds, "flops": flops, "flop_rate": flops / seconds, "flops_by_op": by_op}
+
+
+def cpu_preset(repeats: int) -> dict:
+    """The cpu preset's step with 1 and 2 torch threads, and the time to make one batch of samples (FPS)."""
+    config = cfg.cpu()
+    result = {}
+    threads = torch.get_num_threads()
+    for n in (1, 2):
+        torch.set_num_threads(n)
+        result[f"step_seconds_{n}_threads"] = training_step(repeats, config)["seconds"]
+    torch.set_num_threads(threads)
+    train_dir = OFFICIAL_VAL.parent / "train"
+    if train_dir.is_dir():
+        from tax3d.data.dataset import DemoDataset
+
+        dataset = DemoDataset(train_dir, "cd", train=True, rotate=config.data.rotate,
+                              num_action_points=config.data.num_action_points,
+                              num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size)
+        B = config.train.batch_size
+        result["batch_data_seconds"] = best_time(lambda: [dataset[i] for i in range(B)], repeats)
+    return result
 
 
 def prediction(checkpoint: Path, samples: int, repeats: int) -> dict:
@@ -105,7 +145,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
     parser.add_argument("--checkpoint", type=Path, default=ROOT / "checkpoints" / "tax3d-cd-official-simple")
     parser.add_argument("--samples", type=int, default=3, help="samples per val demo for the RMSE")
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     if args.threads > 0:
         torch.set_num_threads(args.threads)
@@ -113,12 +153,17 @@ def main() -> None:
     peak = matmul_peak()
     train = training_step(args.repeats)
     out = {
-        "machine": f"{platform.machine()}, {torch.get_num_threads()} torch threads, torch {torch.__version__}",
+        "command": "python " + " ".join(sys.argv),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, {torch.get_num_threads()} torch threads, "
+                   f"torch {torch.__version__}",
+        "date": datetime.date.today().isoformat(),
         "matmul_peak_gflops": peak / 1e9,
         "train_step": {"config": "paper: TAX3D-CD, hidden 128, depth 5, batch 16, 512 + 512 points",
                        "seconds": train["seconds"], "gflop": train["flops"] / 1e9,
-                       "gflops": train["flop_rate"] / 1e9, "fraction_of_peak": train["flop_rate"] / peak},
+                       "gflops": train["flop_rate"] / 1e9, "fraction_of_peak": train["flop_rate"] / peak,
+                       "gflop_by_op": {op: n / 1e9 for op, n in train["flops_by_op"].items()}},
     }
+    out["train_step_cpu_preset"] = cpu_preset(args.repeats)
     if args.checkpoint.is_dir():
         out["predict"] = prediction(args.checkpoint, args.samples, args.repeats)
     else:
