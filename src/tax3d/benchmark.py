@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+from tax3d.atomic import write_text
 from tax3d.errors import UsageError
 
 SPLITS = ("train", "unseen", "ood")
@@ -115,8 +115,6 @@ def run(args: Args) -> int:
         lines += [f"## {variant}", "", "```", format_table(table), "```", ""]
         print(f"{variant}\n{format_table(table)}\n")
     path = args.out / "results.md"
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text("\n".join(lines))
-    os.replace(tmp, path)
+    write_text(path, "\n".join(lines))
     print(f"results: {path}")
     return 0

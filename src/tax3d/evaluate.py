@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tax3d.atomic import write_text
 from tax3d.errors import UsageError
 
 SPLIT_FOLDERS = {"train": ("train",), "unseen": ("unseen", "val"), "ood": ("ood", "val_ood")}
@@ -276,9 +277,7 @@ def _write_outputs(args: Args, summary: dict, results: list[dict]) -> None:
     scalars = [{k: v for k, v in r.items() if not isinstance(v, np.ndarray) and k not in ("cloth_key",)}
                for r in results]
     path = args.out / "results.json"
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps({"summary": summary, "episodes": scalars}, indent=2, default=_plain))
-    os.replace(tmp, path)
+    write_text(path, json.dumps({"summary": summary, "episodes": scalars}, indent=2, default=_plain))
     if args.report:
         from tax3d.report import write_report
 

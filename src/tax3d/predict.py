@@ -10,9 +10,7 @@ min over samples (REFERENCE.md, Evaluation), and the mean over all samples.
 from __future__ import annotations
 
 import json
-import os
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +19,7 @@ from typing import Literal, Optional
 import numpy as np
 import torch
 
+from tax3d.atomic import atomic_write
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
@@ -91,16 +90,12 @@ def write_npz(path: Path, goals: list[np.ndarray], files: list[Path], errors: np
         stacked = np.empty(len(goals), dtype=object)
         stacked[:] = goals
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f:
             np.savez(f, goals=stacked, files=np.array([str(p) for p in files]), rmse=errors)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+
+    atomic_write(path, write)
 
 
 if __name__ == "__main__":

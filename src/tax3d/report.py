@@ -5,11 +5,12 @@ from __future__ import annotations
 import html
 import io
 import math
-import os
 import re
 from pathlib import Path
 
 import numpy as np
+
+from tax3d.atomic import write_bytes
 
 ANCHOR_COLOR = "#8c8c8c"
 ACTION_COLOR = "#1f77b4"
@@ -52,14 +53,6 @@ def _number(value, digits: int) -> str:
     return f"{float(value):.{digits}f}"
 
 
-def _atomic_bytes(path: Path, data: bytes) -> Path:
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
 
 
 def _safe_name(text: str) -> str:
@@ -167,7 +160,7 @@ def _style_axes(ax, title: str, fontsize: float = 8) -> None:
 def _save_png(fig, path: Path) -> Path:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png")
-    return _atomic_bytes(path, buffer.getvalue())
+    return write_bytes(path, buffer.getvalue())
 
 
 def _episode_label(episode: dict) -> str:
@@ -262,7 +255,7 @@ def denoising_gif(path: Path, frames: np.ndarray, anchor: np.ndarray, max_frames
     durations = [duration_ms] * (len(images) - 1) + [duration_ms * 8]  # hold the final goal
     buffer = io.BytesIO()
     images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0)
-    return _atomic_bytes(path, buffer.getvalue())
+    return write_bytes(path, buffer.getvalue())
 
 
 def _frame_indices(count: int, max_frames: int) -> list[int]:
@@ -483,7 +476,7 @@ def write_report(out_dir: Path, summary: dict, episodes: list[dict], title: str 
     for i, name in images.items():
         released_png(image_dir / name, episodes[i])
     overview_png(image_dir / "overview.png", episodes, splits)
-    _atomic_bytes(out_dir / "results.md", results_markdown(summary, html.escape(title, quote=False)).encode())
+    write_bytes(out_dir / "results.md", results_markdown(summary, html.escape(title, quote=False)).encode())
     figures = _pick_figures(episodes, splits, max_figures)
     page = report_html(summary, episodes, title, figures, images)
-    return _atomic_bytes(out_dir / "report.html", page.encode("utf-8"))
+    return write_bytes(out_dir / "report.html", page.encode("utf-8"))

@@ -13,7 +13,6 @@ import copy
 import dataclasses
 import json
 import math
-import os
 import shutil
 import sys
 import tempfile
@@ -27,6 +26,7 @@ import torch
 from torch.utils.data import DataLoader, Dataset, Sampler
 
 from tax3d import config as cfg
+from tax3d.atomic import write_text
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
@@ -164,9 +164,7 @@ def truncate_log(path: Path, step: int) -> None:
     if not path.is_file():
         return
     lines = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= step]
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text("".join(line + "\n" for line in lines))
-    os.replace(tmp, path)
+    write_text(path, "".join(line + "\n" for line in lines))
 
 
 # --- configuration ---------------------------------------------------------------------------------------------

@@ -6,12 +6,12 @@ import io
 import os
 import pickle
 import re
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from tax3d.atomic import atomic_write
 from tax3d.errors import UsageError
 
 ARRAY_KEYS = ("action_pc", "action_seg", "anchor_pc", "anchor_seg", "flow", "speed_factor", "rot", "trans")
@@ -148,16 +148,11 @@ def save_demo(path: str | os.PathLike, demo: dict) -> None:
             arrays[key] = holder
         else:
             arrays[key] = np.asarray(value)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".npz.tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f:  # a file object, so numpy does not append ".npz" to the temporary name
             np.savez(f, **arrays)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+
+    atomic_write(path, write)
 
 
 def demo_index(path: str | os.PathLike) -> int | None:

@@ -9,8 +9,6 @@ A checkpoint is a directory with `config.json` (a `tax3d.config.Config`) and `mo
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +17,7 @@ import torch.nn as nn
 from safetensors.torch import load_file, save_file
 
 from tax3d import config as cfg
+from tax3d.atomic import atomic_write
 from tax3d.data.dataset import frame_inputs, to_world, variant_spec
 from tax3d.errors import UsageError
 from tax3d.geometry import farthest_point_sample
@@ -216,8 +215,8 @@ class Tax3D(nn.Module):
         directory.mkdir(parents=True, exist_ok=True)
         state = state_dict if state_dict is not None else self.net.state_dict()
         state = {k: v.detach().to("cpu").contiguous() for k, v in state.items()}
-        _atomic_write(directory / WEIGHTS_NAME, lambda path: save_file(state, str(path), metadata={"format": "pt"}))
-        _atomic_write(directory / CONFIG_NAME, lambda path: cfg.save(self.config, path))
+        atomic_write(directory / WEIGHTS_NAME, lambda path: save_file(state, str(path), metadata={"format": "pt"}))
+        atomic_write(directory / CONFIG_NAME, lambda path: cfg.save(self.config, path))
 
     @classmethod
     def from_pretrained(cls, directory, variant: str | None = None, map_location="cpu") -> "Tax3D":
@@ -252,20 +251,6 @@ class Tax3D(nn.Module):
                            f"expected {tuple(expected[wrong[0]].shape)}")
             raise CheckpointError(f"{where}: weights do not match config.json ({detail})")
         self.net.load_state_dict(state)
-
-
-def _atomic_write(path: Path, write) -> None:
-    """write(tmp_path) into a temporary file beside `path`, then rename it over `path`."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def read_config(directory) -> dict:
