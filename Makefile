@@ -21,6 +21,8 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/sim.py
+	$(BIN)/python benchmarks/model.py
+	$(BIN)/python benchmarks/eval.py
 
 clean:
 	rm -rf $(VENV) out

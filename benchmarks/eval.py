@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from tax3d.demo import SHIPPED
+
+ROOT = Path(__file__).resolve().parents[1]
 from tax3d.evaluate import Args, plan_jobs, run_jobs
 
 
@@ -42,7 +44,8 @@ def main() -> None:
         wall2, two = timed(Args(episodes=2 * args.episodes, **common), 2)
     print(json.dumps({
         "command": "python " + " ".join(sys.argv),
-        "checkpoint": str(args.checkpoint),
+        "checkpoint": str(args.checkpoint.resolve().relative_to(ROOT) if args.checkpoint.resolve().is_relative_to(ROOT)
+                          else args.checkpoint),
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "date": datetime.date.today().isoformat(),
         "seconds_per_episode_1_worker": round(wall1 / len(one), 2),

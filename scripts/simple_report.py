@@ -56,6 +56,15 @@ def main() -> None:
               *notes, ""]
     if args.train_command:
         lines += ["Training commands:", *[f"- `{c}`" for c in args.train_command], ""]
+    speed = OUT.parent / "eval_benchmark.json"
+    if speed.exists():
+        b = json.loads(speed.read_text())
+        lines += ["## Evaluation speed", "", f"`{b['command']}` (checkpoint `{b['checkpoint']}`, fresh unseen poses) on "
+                  f"{b['machine']}, {b['date']}, nothing else running:", "",
+                  "| seconds per episode, 1 worker | of which prediction | of which simulation | "
+                  "throughput 2 workers / 1 worker |", "| --- | --- | --- | --- |",
+                  f"| {b['seconds_per_episode_1_worker']:.2f} | {b['predict_seconds_per_episode']:.2f} | "
+                  f"{b['sim_seconds_per_episode']:.2f} | {b['throughput_ratio_2_workers']:.2f} |", ""]
     tmp = args.out.with_name(f".{args.out.name}.tmp")
     tmp.write_text("\n".join(lines))
     os.replace(tmp, args.out)
