@@ -1,7 +1,9 @@
 """Pseudo-expert success rates per task and split, one attempt per episode; prints one JSON object.
 
 Each (task, split) runs the first --num episodes of that split's seeds with --max-attempts 1, so the rate is
-successes / episodes (multimodal: both holes of each cloth are attempted, 2 episodes per cloth).
+successes / episodes (multimodal: both holes of each cloth are attempted, 2 episodes per cloth). HangBag rows also
+give the episodes that broke the integrity bounds (counted as failures) and the worst stretch, spread and
+penetration seen (sim/integrity.py).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from pathlib import Path
 
 from tax3d.sim.generate import Args, generate
 
-TASKS = ("hangproccloth-simple", "hangproccloth-unimodal", "hangproccloth-multimodal")
+TASKS = ("hangproccloth-simple", "hangproccloth-unimodal", "hangproccloth-multimodal", "hangbag")
 
 
 def main() -> int:
@@ -45,6 +47,8 @@ def main() -> int:
                 print(f"expert_rates: {out} already holds demos; use an empty folder", file=sys.stderr)
                 return 2
             row = {k: stats[k] for k in ("episodes", "successes", "exploded", "success_rate", "seconds_per_episode")}
+            if stats["integrity"]:
+                row.update(broken=stats["broken"], worst=stats["integrity"], failed=stats["failed"])
             report["rates"].append({"task": task, "split": split, **row})
             print(json.dumps(report["rates"][-1]), file=sys.stderr, flush=True)
     print(json.dumps(report, indent=2))

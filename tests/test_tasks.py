@@ -27,6 +27,7 @@ def test_paper_dataset_sizes():
     assert TASKS["hangproccloth-simple"].sizes == {"train": 16, "unseen": 40, "ood": 40}
     assert TASKS["hangproccloth-unimodal"].sizes == {"train": 64, "unseen": 40, "ood": 40}
     assert TASKS["hangproccloth-multimodal"].demos_per_cloth == 2
+    assert TASKS["hangbag"].sizes == {"train": 16, "unseen": 40, "ood": 40}
 
 
 def test_seeds_reproducible_and_distinct():

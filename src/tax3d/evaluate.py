@@ -26,12 +26,12 @@ SPLIT_FOLDERS = {"train": ("train",), "unseen": ("unseen", "val"), "ood": ("ood"
 
 @dataclass
 class Args:
-    """Evaluate a checkpoint on HangProcCloth: RMSE and policy success per split, a table, JSON and an HTML report."""
+    """Evaluate a checkpoint on HangProcCloth or HangBag: RMSE and policy success per split, a table, JSON, a report."""
 
     checkpoint: Path
     """checkpoint directory (config.json + model.safetensors)"""
     task: str = "hangproccloth-simple"
-    """hangproccloth-simple, hangproccloth-unimodal or hangproccloth-multimodal"""
+    """hangproccloth-simple, hangproccloth-unimodal, hangproccloth-multimodal or hangbag"""
     splits: str = "train,unseen,ood"
     """comma-separated splits to evaluate"""
     data: Path | None = None
@@ -71,6 +71,7 @@ class EvalJob:
     replan_every: int = 0
     seed: int = 0
     denoising: bool = False
+    task: str = "hangproccloth-simple"
 
 
 _PREDICTORS: dict = {}
@@ -93,10 +94,12 @@ def run_eval_job(job: EvalJob) -> dict:
     from tax3d.policy import GoalPolicy
     from tax3d.sim.env import process_env
     from tax3d.sim.episode import run_episode
+    from tax3d.sim.tasks import get_task
 
+    task = get_task(job.task)
     policy = GoalPolicy(_predictor(job.checkpoint), job.samples, job.steps, job.seed, job.replan_every,
-                        trajectory=job.denoising)
-    ep = run_episode(process_env(job.floor), job.cloth_params, job.rot_z, job.trans, policy)
+                        trajectory=job.denoising, offset=task.policy_offset)
+    ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
     return {
@@ -137,7 +140,7 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         split = get_split(split_name)
         folder = _split_folder(args.data, split.name)
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
-                      replan_every=args.replan_every)
+                      replan_every=args.replan_every, task=task.name)
         if folder is not None:
             paths = list_demos(folder)[: args.episodes]
             for i, path in enumerate(paths):

@@ -11,12 +11,14 @@ class GoalPolicy:
     """Predict the goal once on the full action cloud; drive the grippers to the predicted grip vertices.
 
     With replan_every = K > 0 it predicts again every K environment steps from the current cloth (closed loop,
-    the paper's stated limitation; reported separately). Called as make_policy(env, state) by run_episode.
+    the paper's stated limitation; reported separately). `offset` is added to the predicted positions (HangBag:
+    (0, -0.5, 1.0), REFERENCE.md "Evaluation"). Called as make_policy(env, state) by run_episode.
     """
 
     def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
-                 replan_every: int = 0, trajectory: bool = False):
+                 replan_every: int = 0, trajectory: bool = False, offset=(0.0, 0.0, 0.0)):
         self.predictor, self.num_samples, self.steps, self.seed = predictor, num_samples, steps, seed
+        self.offset = np.asarray(offset, dtype=np.float64)
         self.replan_every, self.trajectory = replan_every, trajectory
         self.predict_seconds, self.predictions = 0.0, 0
         self.first_prediction: np.ndarray | None = None  # (S, N, 3) world-frame goal samples
@@ -42,7 +44,7 @@ class GoalPolicy:
         if self.predictions == 0:
             self.first_prediction = goals
         self.predictions += 1
-        self.current = goals[0][self.grip]
+        self.current = goals[0][self.grip] + self.offset
 
     def targets(self, cloth: np.ndarray) -> np.ndarray:
         if self.replan_every and self.step and self.step % self.replan_every == 0:

@@ -17,6 +17,8 @@ from tax3d.errors import UsageError
 ARRAY_KEYS = ("action_pc", "action_seg", "anchor_pc", "anchor_seg", "flow", "speed_factor", "rot", "trans")
 OBJECT_KEYS = ("deform_params", "anchors")
 REQUIRED_KEYS = ARRAY_KEYS + OBJECT_KEYS
+# deform_params of a HangBag demo: the procedural bag's sizes (tax3d.sim.bag.BagParams).
+BAG_KEYS = frozenset({"width", "depth", "height", "handle_gap", "handle_rise", "strap", "spacing", "handle_segments"})
 # Optional per-step trajectory arrays written by `tax3d generate --trajectories` (for the DP3 baseline).
 TRAJECTORY_PREFIX = "traj_"
 
@@ -123,14 +125,20 @@ def validate_demo(demo: dict, path: str | os.PathLike = "<demo>") -> None:
         if not np.all(np.isfinite(demo[key])):
             raise DemoError(f"{path}: {key} contains NaN or infinite values")
     params = demo.get("deform_params")
+    if not (isinstance(params, dict) and BAG_KEYS <= set(params)):  # a bag's sizes are checked when it is built
+        _validate_cloth_dict(params, path)
+    if not isinstance(demo.get("anchors"), dict):
+        raise DemoError(f"{path}: anchors is not a dict of gripper id -> {{pos, vertices}}")
+
+
+def _validate_cloth_dict(params, path) -> None:
     if not isinstance(params, dict) or not {"node_density", "w", "h", "holes"} <= set(params):
-        raise DemoError(f"{path}: deform_params is not a dict with node_density, w, h and holes")
+        raise DemoError(f"{path}: deform_params is not a dict with node_density, w, h and holes (a cloth) "
+                        f"or {', '.join(sorted(BAG_KEYS))} (a bag)")
     if not isinstance(params["holes"], list) or not all(
         isinstance(h, dict) and {"x0", "x1", "y0", "y1"} <= set(h) for h in params["holes"]
     ):
         raise DemoError(f"{path}: deform_params.holes must be a list of {{x0, x1, y0, y1}} dicts")
-    if not isinstance(demo.get("anchors"), dict):
-        raise DemoError(f"{path}: anchors is not a dict of gripper id -> {{pos, vertices}}")
 
 
 def save_demo(path: str | os.PathLike, demo: dict) -> None:

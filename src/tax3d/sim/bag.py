@@ -17,6 +17,8 @@ from tax3d.sim.env import SOFT_BODY
 BAG_POSITION = (0.0, 8.0, 2.0)
 BAG_EULER = (np.pi / 2, 0.0, 0.0)
 BAG_SCALE = 1.0
+# REFERENCE.md, "Evaluation": the HangBag policy's gripper targets are the predicted grip vertices plus this (world).
+POLICY_OFFSET = (0.0, -0.5, 1.0)
 # The cloth's soft-body parameters (REFERENCE.md, "HangProcCloth scene"); the bag behaves with them unchanged.
 BAG_SOFT_BODY = dict(SOFT_BODY)
 
@@ -33,6 +35,27 @@ class BagParams:
     strap: float = 0.35  # width of the strap
     spacing: float = 0.175  # target edge length
     handle_segments: int = 24  # edges along each strap's arch (even, so the apex is a vertex)
+
+
+# The fixed bag of the HangBag task (the paper uses one bag geometry), as stored in a demo's deform_params.
+FIXED_BAG = asdict(BagParams())
+
+
+def parse_bag_params(params: dict, where: str = "bag") -> BagParams:
+    """A demo's deform_params back to BagParams; raises UsageError naming the bad or missing field."""
+    names = set(BagParams.__dataclass_fields__)
+    if not isinstance(params, dict) or not names <= set(params):
+        missing = sorted(names - set(params)) if isinstance(params, dict) else sorted(names)
+        raise UsageError(
+            f"{where}: bag parameters lack {', '.join(missing)}; expected all of {', '.join(sorted(names))}"
+        )
+    try:
+        values = {k: (int(params[k]) if k == "handle_segments" else float(params[k])) for k in names}
+    except (TypeError, ValueError) as err:
+        raise UsageError(f"{where}: bag parameters must be numbers ({err})") from None
+    if not all(v > 0 for v in values.values()):
+        raise UsageError(f"{where}: bag parameters {values}; expected every size to be positive")
+    return BagParams(**values)
 
 
 def sample_bag_params(rng: np.random.Generator) -> BagParams:

@@ -14,6 +14,7 @@ import pybullet
 from tax3d.sim.anchor import add_floor, goal_position, load_anchor
 from tax3d.sim.camera import anchor_cloud
 from tax3d.sim.cloth import ClothMesh, build_cloth
+from tax3d.sim.success import cloth_success
 
 # REFERENCE.md, "HangProcCloth scene" and "Units and frames".
 TIMESTEP = 1.0 / 500.0
@@ -64,6 +65,8 @@ class SceneState:
 class HangClothEnv:
     """One PyBullet world per instance (DIRECT mode); the cloth mesh goes to this instance's temporary folder."""
 
+    scene = "cloth"
+
     def __init__(self, floor: bool = True):
         self.floor = floor
         self.client = pybullet.connect(pybullet.DIRECT)
@@ -88,19 +91,10 @@ class HangClothEnv:
 
     # ----------------------------------------------------------------- reset
     def reset(self, cloth_params: dict, rot_z: float, trans) -> SceneState:
-        c = self.client
-        self.rot_z, self.trans = float(rot_z), np.asarray(trans, dtype=np.float64)
+        c = self._new_world(rot_z, trans)
         self.mesh = build_cloth(cloth_params)
-        pybullet.resetSimulation(pybullet.RESET_USE_DEFORMABLE_WORLD, physicsClientId=c)
-        pybullet.setGravity(0, 0, -9.8, physicsClientId=c)
-        pybullet.setTimeStep(TIMESTEP, physicsClientId=c)
-        if self.floor:
-            add_floor(c)
         self.anchor_ids = load_anchor(c, self.rot_z, self.trans)
-        # A new file name per reset: PyBullet caches loaded meshes by file name, so reusing one would load the
-        # previous cloth again.
-        self.resets += 1
-        obj = os.path.join(self.tmpdir, f"cloth_{self.resets}.obj")
+        obj = self._mesh_path("cloth")
         with open(obj, "w") as f:
             f.write(self.mesh.obj_text())
         self.cloth_id = pybullet.loadSoftBody(
@@ -111,15 +105,37 @@ class HangClothEnv:
             physicsClientId=c,
             **SOFT_BODY,
         )
+        vertices = self.cloth_vertices()
+        if len(vertices) != self.mesh.num_vertices:
+            raise RuntimeError(f"soft body has {len(vertices)} vertices, mesh file {self.mesh.num_vertices}")
+        os.unlink(obj)
+        return self._finish_reset(vertices)
+
+    def _new_world(self, rot_z: float, trans) -> int:
+        """An empty deformable world with gravity, the time step and the floor; remembers the anchor pose."""
+        c = self.client
+        self.rot_z, self.trans = float(rot_z), np.asarray(trans, dtype=np.float64)
+        pybullet.resetSimulation(pybullet.RESET_USE_DEFORMABLE_WORLD, physicsClientId=c)
+        pybullet.setGravity(0, 0, -9.8, physicsClientId=c)
+        pybullet.setTimeStep(TIMESTEP, physicsClientId=c)
+        if self.floor:
+            add_floor(c)
+        return c
+
+    def _mesh_path(self, stem: str) -> str:
+        # A new file name per reset: PyBullet caches loaded meshes by file name, so reusing one would load the
+        # previous mesh again.
+        self.resets += 1
+        return os.path.join(self.tmpdir, f"{stem}_{self.resets}.obj")
+
+    def _finish_reset(self, vertices: np.ndarray) -> SceneState:
+        """After the soft body is loaded: SDF voxel size, look, and a gripper tied to each grip vertex."""
+        c = self.client
         pybullet.setPhysicsEngineParameter(sparseSdfVoxelSize=0.25, physicsClientId=c)
         pybullet.changeVisualShape(
             self.cloth_id, -1, rgbaColor=[0.95, 0.95, 1.0, 1], flags=pybullet.VISUAL_SHAPE_DOUBLE_SIDED,
             physicsClientId=c,
         )
-        vertices = self.cloth_vertices()
-        if len(vertices) != self.mesh.num_vertices:
-            raise RuntimeError(f"soft body has {len(vertices)} vertices, mesh file {self.mesh.num_vertices}")
-        os.unlink(obj)
         self.gripper_ids = []
         for v in self.mesh.grip_vertices():
             shape = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=GRIPPER_RADIUS, physicsClientId=c)
@@ -160,6 +176,14 @@ class HangClothEnv:
     def goal(self) -> np.ndarray:
         return goal_position(self.rot_z, self.trans)
 
+    def aim_vertices(self, part: int) -> np.ndarray:
+        """The vertices the expert brings to the goal: the loop of hole `part`."""
+        return self.mesh.loops[part]
+
+    def judge(self, pre: np.ndarray, post: np.ndarray) -> dict:
+        """The success check (appendix A.4.2) on the cloth before and after release."""
+        return cloth_success(pre, post, self.mesh.loops, self.goal())
+
     # ----------------------------------------------------------------- control
     def step(self, targets: np.ndarray) -> None:
         """One environment step: SIM_STEPS_PER_ACTION simulation steps of PD force control towards targets (2, 3)."""
@@ -179,11 +203,21 @@ class HangClothEnv:
             pybullet.stepSimulation(physicsClientId=self.client)
 
 
-_PROCESS_ENVS: dict[bool, HangClothEnv] = {}
+_PROCESS_ENVS: dict[tuple[str, bool], HangClothEnv] = {}
 
 
-def process_env(floor: bool = True) -> HangClothEnv:
-    """One scene per worker process and floor setting, reused across episodes."""
-    if floor not in _PROCESS_ENVS:
-        _PROCESS_ENVS[floor] = HangClothEnv(floor=floor)
-    return _PROCESS_ENVS[floor]
+def env_class(scene: str) -> type[HangClothEnv]:
+    """The environment of a task's scene: "cloth" (HangProcCloth) or "bag" (HangBag)."""
+    if scene == "bag":
+        from tax3d.sim.bag_env import HangBagEnv
+
+        return HangBagEnv
+    return HangClothEnv
+
+
+def process_env(floor: bool = True, scene: str = "cloth") -> HangClothEnv:
+    """One scene per worker process, scene kind and floor setting, reused across episodes."""
+    key = (scene, floor)
+    if key not in _PROCESS_ENVS:
+        _PROCESS_ENVS[key] = env_class(scene)(floor=floor)
+    return _PROCESS_ENVS[key]

@@ -1,4 +1,4 @@
-"""One HangProcCloth episode: reset, manipulation under a policy, release, success check, demo record."""
+"""One episode (HangProcCloth or HangBag): reset, manipulation under a policy, release, success check, demo."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import numpy as np
 
 from tax3d.sim.env import HangClothEnv, SceneState, SimulationExploded
 from tax3d.sim.expert import PseudoExpert
-from tax3d.sim.success import cloth_success
 
 MANIPULATION_STEPS = 300  # environment steps (REFERENCE.md, "Pseudo-expert and episode")
 TRAJECTORY_POINTS = 512
@@ -42,14 +41,14 @@ class Episode:
 
 def expert_policy(hole: int = 0) -> Callable[[HangClothEnv, SceneState], Policy]:
     def make(env: HangClothEnv, state: SceneState) -> Policy:
-        return PseudoExpert(state.grippers, state.cloth, env.mesh.loops[hole], env.rot_z, env.trans)
+        return PseudoExpert(state.grippers, state.cloth, env.aim_vertices(hole), env.rot_z, env.trans, env.scene)
 
     return make
 
 
 def run_episode(
     env: HangClothEnv,
-    cloth_params: dict,
+    cloth_params: dict,  # the deformable's parameters: a cloth's, or a bag's
     rot_z: float,
     trans,
     make_policy: Callable[[HangClothEnv, SceneState], Policy],
@@ -83,7 +82,7 @@ def run_episode(
         episode.released_pc = env.state().cloth.copy()
         if frame_every and render is not None:
             episode.frames.append(render(env))
-        episode.checks = cloth_success(episode.goal_pc, episode.released_pc, env.mesh.loops, env.goal())
+        episode.checks = env.judge(episode.goal_pc, episode.released_pc)
         episode.success = episode.checks["success"]
         if record is not None:
             episode.trajectory = record.arrays()

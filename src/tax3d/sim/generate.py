@@ -7,7 +7,7 @@ import multiprocessing
 import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -15,6 +15,7 @@ import numpy as np
 
 from tax3d.data.format import demo_index, is_valid_demo, list_demos, load_demo, save_demo
 from tax3d.errors import UsageError
+from tax3d.sim.bag import parse_bag_params
 from tax3d.sim.cloth import validate_cloth_params
 from tax3d.sim.env import process_env
 from tax3d.sim.tasks import episode_params, get_split, get_task
@@ -22,10 +23,11 @@ from tax3d.sim.tasks import episode_params, get_split, get_task
 
 @dataclass
 class Args:
-    """Generate HangProcCloth demonstrations, or replay the cloths and anchor poses of existing demo files."""
+    """Generate HangProcCloth or HangBag demonstrations, or replay the cloths and anchor poses of demo files."""
 
     task: str = "hangproccloth-simple"
-    """hangproccloth-simple, hangproccloth-unimodal or hangproccloth-multimodal"""
+    """hangproccloth-simple, hangproccloth-unimodal, hangproccloth-multimodal or hangbag (with --replay: the task
+    the files come from)"""
     split: str = "train"
     """train, unseen or ood (out-of-distribution anchor poses)"""
     num: int | None = None
@@ -74,6 +76,8 @@ class JobResult:
     episodes: int = 0
     successes: int = 0
     exploded: int = 0
+    broken: int = 0  # bag episodes that stretched, spread or tunnelled beyond the integrity bounds
+    figures: list[dict] = field(default_factory=list)  # bag episodes: the integrity figures, before and after
     seconds: float = 0.0
 
 
@@ -82,7 +86,7 @@ def run_job(job: Job) -> JobResult:
     from tax3d.sim.episode import episode_to_demo, expert_policy, run_episode
     from tax3d.sim.render import render_frame, save_frames
 
-    env = process_env(job.floor)
+    env = process_env(job.floor, get_task(job.task).scene)
     result = JobResult(job.names)
     attempts = 1 if job.replay is not None else job.max_attempts
     for attempt in range(attempts):
@@ -100,8 +104,16 @@ def run_job(job: Job) -> JobResult:
             result.episodes += 1
             result.seconds += ep.seconds
             result.exploded += ep.exploded
-            # A demonstration is labelled with the hole the expert aimed at: that hole itself must pass.
-            ok = ep.success and ep.checks["holes"][hole]["centroid"] and ep.checks["holes"][hole]["polygon"]
+            # A demonstration is labelled with the hole (or bag handle) the expert aimed at: it must pass itself.
+            # A bag must also stay intact: no explosion, no tunnelling through the hook (sim/integrity.py).
+            parts = ep.checks.get("holes") or ep.checks.get("handles") or []
+            ok = ep.success and hole < len(parts) and all(parts[hole].values())
+            integrity = ep.checks.get("integrity", {})
+            intact = integrity.get("intact", True)
+            if integrity:
+                result.figures.append(integrity)
+            result.broken += not ep.exploded and not intact
+            ok = ok and intact
             result.successes += ok
             episodes.append((ep, ok))
         if all(ok for _, ok in episodes):
@@ -126,17 +138,21 @@ def _check_out(out: Path) -> None:
 
 
 def _replay_jobs(folder: Path, args: Args) -> list[Job]:
+    task = get_task(args.task)
     jobs = []
     paths = list_demos(folder)
     for path in paths if args.num is None else paths[: max(args.num, 0)]:
         demo = load_demo(path)
-        cloth = validate_cloth_params(demo["deform_params"], where=str(path))
+        if task.scene == "bag":
+            cloth, hole = asdict(parse_bag_params(demo["deform_params"], where=str(path))), 0
+        else:
+            cloth = validate_cloth_params(demo["deform_params"], where=str(path))
+            hole = demo_index(path) % cloth["num_holes"]
         rot_z, trans = float(demo["rot"][2]), np.asarray(demo["trans"], dtype=np.float64)
         # The official train split was rendered without a floor: its anchor cloud reaches below the anchor's base.
         floor = bool(demo["anchor_pc"][:, 2].min() >= trans[2] - 0.05)
-        hole = demo_index(path) % cloth["num_holes"]
         replay = {"cloth_params": cloth, "rot_z": rot_z, "trans": trans}
-        jobs.append(Job([path.name], [hole], replay=replay, floor=floor))
+        jobs.append(Job([path.name], [hole], task=args.task, replay=replay, floor=floor))
     return jobs
 
 
@@ -180,11 +196,19 @@ def generate(args: Args, progress: bool = True) -> dict:
         episodes=sum(r.episodes for r in results),
         successes=sum(r.successes for r in results),
         exploded=sum(r.exploded for r in results),
+        broken=sum(r.broken for r in results),
+        integrity=_worst([f for r in results for f in r.figures]),
         seconds=sum(r.seconds for r in results),
     )
     stats["success_rate"] = stats["successes"] / stats["episodes"] if stats["episodes"] else float("nan")
     stats["seconds_per_episode"] = stats["seconds"] / stats["episodes"] if stats["episodes"] else float("nan")
     return stats
+
+
+def _worst(figures: list[dict]) -> dict:
+    """The largest stretch, spread and penetration over bag episodes, before and after release ({} for cloths)."""
+    keys = ("stretch", "spread", "penetration")
+    return {k: max(f[when][k] for f in figures for when in ("before", "after")) for k in keys} if figures else {}
 
 
 def _run(jobs: list[Job], workers: int, progress: bool) -> list[JobResult]:
@@ -211,7 +235,9 @@ def run(args: Args) -> int:
     rate = stats["success_rate"]
     print(
         f"expert success {stats['successes']}/{stats['episodes']} episodes ({rate:.0%}), "
-        f"{stats['seconds_per_episode']:.1f} s per episode, {stats['exploded']} exploded; "
+        f"{stats['seconds_per_episode']:.1f} s per episode, {stats['exploded']} exploded"
+        + (f", {stats['broken']} torn or tunnelled" if stats["broken"] else "")
+        + "; "
         f"wrote {stats['written']} demos to {args.out} ({stats['skipped']} already there"
         + (f", {len(stats['failed'])} failed: {' '.join(stats['failed'][:5])}" if stats["failed"] else "")
         + ")"

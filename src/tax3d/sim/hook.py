@@ -102,3 +102,31 @@ def canonical_hook_cloud(with_floor: bool) -> np.ndarray:
 def hook_cloud(rot_z: float, trans, with_floor: bool = True) -> np.ndarray:
     """The anchor cloud under a random pose: the canonical render moved by p -> Rz p + trans."""
     return pose_points(canonical_hook_cloud(with_floor), rot_z, trans)
+
+
+def cylinders(rot_z: float = 0.0, trans=(0.0, 0.0, 0.0)) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    """(centre, unit axis, radius, half length) in the world of every cylinder of the hook and the pole."""
+    out = []
+    for parts, position, euler in ((HOOK_PARTS, HOOK_POSITION, HOOK_EULER), (POLE_PARTS, POLE_POSITION, POLE_EULER)):
+        body = _matrix([euler[0], euler[1], euler[2] + rot_z])
+        origin = pose_points(np.asarray(position)[None], rot_z, trans)[0]
+        for radius, length, centre, part_euler in parts:
+            axis = body @ _matrix(part_euler)[:, 2]  # a PyBullet cylinder's axis is its frame's z
+            out.append((origin + body @ np.asarray(centre), axis, float(radius), float(length) / 2))
+    return out
+
+
+def penetration(points: np.ndarray, rot_z: float = 0.0, trans=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Per point, how deep it lies inside the hook or the pole (0 outside): the distance to the nearest face."""
+    points = np.asarray(points, dtype=np.float64)
+    depth = np.zeros(len(points))
+    for centre, axis, radius, half in cylinders(rot_z, trans):
+        rel = points - centre
+        along = rel @ axis
+        across = np.linalg.norm(rel - along[:, None] * axis, axis=1)
+        depth = np.maximum(depth, np.minimum(radius - across, half - np.abs(along)))
+    return depth
+
+
+def _matrix(euler) -> np.ndarray:
+    return np.array(pybullet.getMatrixFromQuaternion(pybullet.getQuaternionFromEuler(list(euler)))).reshape(3, 3)

@@ -1,4 +1,4 @@
-"""The success check of appendix A.4.2: a centroid check before release and a polygon check after it."""
+"""The success checks of appendix A.4.2: HangProcCloth (centroid, then polygon) and HangBag (centroid, twice)."""
 
 from __future__ import annotations
 
@@ -34,3 +34,12 @@ def cloth_success(pre: np.ndarray, post: np.ndarray, loops, goal, threshold=CLOT
         for loop in loops
     ]
     return {"success": any(h["centroid"] and h["polygon"] for h in holes), "holes": holes}
+
+
+def bag_success(pre: np.ndarray, post: np.ndarray, handles, goal, threshold=BAG_CENTROID_THRESHOLD) -> dict:
+    """HangBag: one handle whose centroid is within the threshold of the goal both before and after release."""
+    parts = [
+        {"before": centroid_check(pre, handle, goal, threshold), "after": centroid_check(post, handle, goal, threshold)}
+        for handle in handles
+    ]
+    return {"success": any(h["before"] and h["after"] for h in parts), "handles": parts}

@@ -1,4 +1,4 @@
-"""HangProcCloth tasks and splits: cloth and anchor-pose samplers with a seed for every (task, split, index)."""
+"""Tasks (HangProcCloth, HangBag) and splits: deformable and anchor-pose samplers with a seed for every index."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tax3d.errors import UsageError
+from tax3d.sim.bag import FIXED_BAG, POLICY_OFFSET
 from tax3d.sim.cloth import DOUBLE_HOLE_CLOTH, SIMPLE_CLOTH, sample_cloth_params
 
 
@@ -18,6 +19,10 @@ class TaskSpec:
     fixed_cloth: dict | None  # None: a random cloth per demonstration (or per pair, multimodal)
     sizes: dict  # default number of demonstrations per split (appendix A.5.2)
     demos_per_cloth: int = 1  # multimodal: one demonstration per hole of the same cloth and anchor pose
+    scene: str = "cloth"  # "cloth": HangProcCloth's cloth and hanger; "bag": HangBag's bag and hook
+    # Added to the predicted grip-vertex positions to give the evaluation policy's gripper targets (REFERENCE.md,
+    # "Evaluation"; world frame).
+    policy_offset: tuple = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -33,6 +38,9 @@ TASKS = {
         TaskSpec("hangproccloth-simple", 1, SIMPLE_CLOTH, {"train": 16, "unseen": 40, "ood": 40}),
         TaskSpec("hangproccloth-unimodal", 1, None, {"train": 64, "unseen": 40, "ood": 40}),
         TaskSpec("hangproccloth-multimodal", 2, None, {"train": 64, "unseen": 40, "ood": 40}, demos_per_cloth=2),
+        # One fixed bag (appendix A.5.2); the expert aims at handle 0, the one facing the hook.
+        TaskSpec("hangbag", 1, FIXED_BAG, {"train": 16, "unseen": 40, "ood": 40}, scene="bag",
+                 policy_offset=POLICY_OFFSET),
     )
 }
 SPLITS = {s.name: s for s in (SplitSpec("train", 0, False), SplitSpec("unseen", 10, False), SplitSpec("ood", 20, True))}
@@ -53,7 +61,8 @@ def get_split(name: str) -> SplitSpec:
 
 
 def sample_anchor_pose(rng: np.random.Generator, ood: bool) -> tuple[float, np.ndarray]:
-    """Appendix A.5.1: rotation U(-pi/3, pi/3) about z; the x-translation takes the rotation's sign."""
+    """Appendix A.5.1 (one table for HangProcCloth and HangBag): rotation U(-pi/3, pi/3) about z; the x-translation
+    takes the rotation's sign."""
     rot_z = float(rng.uniform(-np.pi / 3, np.pi / 3))
     sign = 1.0 if rot_z >= 0 else -1.0
     if ood:
