@@ -1,5 +1,4 @@
 import numpy as np
-import pytest
 
 from tax3d.cli import main
 from tax3d.data.format import is_valid_demo, load_demo, save_demo
