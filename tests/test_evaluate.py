@@ -108,3 +108,27 @@ def test_bad_inputs(capsys, checkpoint, tmp_path):
     err = one_line_error(capsys, ["eval", "--checkpoint", str(other), "--task", "hangproccloth-simple",
                                   "--out", str(tmp_path)])
     assert "trained for task 'hangproccloth-multimodal'" in err
+
+
+def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
+    from tax3d.evaluate import plan_jobs
+    from tax3d.policy import GoalPolicy
+
+    default = plan_jobs(Args(checkpoint=checkpoint, task="hangbag", splits="unseen", episodes=1))
+    chosen = plan_jobs(Args(checkpoint=checkpoint, task="hangbag", splits="unseen", episodes=1,
+                            policy_offset=(0.0, 0.0, 0.5)))
+    assert default[0].offset is None and chosen[0].offset == (0.0, 0.0, 0.5)
+
+    class Fixed:
+        def predict(self, cloth, anchor, num_samples=1, steps=None, seed=None):
+            return np.asarray(cloth, dtype=float)[None] + 1.0
+
+    class Env:
+        mesh = type("Mesh", (), {"grip_vertices": staticmethod(lambda: (0, 2))})()
+
+        def anchor_points(self):
+            return np.zeros((4, 3))
+
+    state = type("State", (), {"cloth": np.arange(9.0).reshape(3, 3)})()
+    policy = GoalPolicy(Fixed(), offset=(0.0, -0.5, 1.0))(Env(), state)
+    assert np.allclose(policy.targets(state.cloth), state.cloth[[0, 2]] + 1.0 + [0.0, -0.5, 1.0])

@@ -50,6 +50,8 @@ class Args:
     first_index: int = 0
     """index of the first fresh episode of each split, for splits without a demo folder"""
     seed: int = 0
+    policy_offset: tuple[float, float, float] | None = None
+    """added to the predicted grip-vertex positions to make the gripper targets (default: the task's)"""
     out: Path = Path("out/eval")
     """output folder: results.json, results.md, report.html, images/"""
     report: bool = True
@@ -72,6 +74,7 @@ class EvalJob:
     seed: int = 0
     denoising: bool = False
     task: str = "hangproccloth-simple"
+    offset: tuple | None = None  # gripper-target offset; None: the task's
 
 
 _PREDICTORS: dict = {}
@@ -98,7 +101,8 @@ def run_eval_job(job: EvalJob) -> dict:
 
     task = get_task(job.task)
     policy = GoalPolicy(_predictor(job.checkpoint), job.samples, job.steps, job.seed, job.replan_every,
-                        trajectory=job.denoising, offset=task.policy_offset)
+                        trajectory=job.denoising,
+                        offset=task.policy_offset if job.offset is None else job.offset)
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
@@ -140,7 +144,8 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         split = get_split(split_name)
         folder = _split_folder(args.data, split.name)
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
-                      replan_every=args.replan_every, task=task.name)
+                      replan_every=args.replan_every, task=task.name,
+                      offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset))
         if folder is not None:
             paths = list_demos(folder)[: args.episodes]
             for i, path in enumerate(paths):
@@ -264,6 +269,7 @@ def evaluate(args: Args, progress: bool = True) -> dict:
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "date": datetime.date.today().isoformat(), "args": {k: str(v) for k, v in asdict(args).items()},
         "splits": summarise(results, splits),
+        "policy_offset": list(get_task(args.task).policy_offset if args.policy_offset is None else args.policy_offset),
     }
     _write_outputs(args, summary, results)
     return {"summary": summary, "results": results}
