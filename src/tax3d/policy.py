@@ -12,7 +12,7 @@ class GoalPolicy:
 
     With replan_every = K > 0 it predicts again every K environment steps from the current cloth (closed loop,
     the paper's stated limitation; reported separately). `offset` is added to the predicted positions (HangBag:
-    (0, -0.5, 1.0), REFERENCE.md "Evaluation"). Called as make_policy(env, state) by run_episode.
+    `tax3d.sim.bag.POLICY_OFFSET`). Called as make_policy(env, state) by run_episode.
     """
 
     def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
