@@ -74,6 +74,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--note", action="append", default=[], help="a paragraph to add under the table")
     parser.add_argument("--baseline", nargs="*", default=[], help="NAME=JSON pairs from scripts/oracle_policy.py: "
                         "fixed-goal rows (the demo's own goal, the mean goal)")
+    parser.add_argument("--goal-spread", type=Path, default=None, help="JSON of scripts/goal_spread.py")
     parser.add_argument("--out", type=Path, default=None, help="default: the task's page in docs/results/")
     args = parser.parse_args(argv)
     if args.task not in TASKS:
@@ -122,7 +123,19 @@ def main(argv: list[str] | None = None) -> None:
               page.remarks + "Each checkpoint is the lowest validation RMSE on 10 `unseen` demos, a mild selection bias "
               "on that split.", "", *[n + "\n" for n in args.note], "Evaluation commands:", *notes, ""]
     if args.train_command:
-        lines += ["Training commands:", *[f"- `{c}`" for c in args.train_command], ""]
+        lines += ["Training commands:", *[f"- {c.split(' :: ')[0]}: `{c.split(' :: ')[1]}`" if " :: " in c
+                                          else f"- `{c}`" for c in args.train_command], ""]
+    if args.goal_spread is not None:
+        g = json.loads(args.goal_spread.read_text())
+        hook = g["anchor_points_off_the_pole"]
+        lines += ["## How far a fixed goal gets", "", f"`{g['command']}`, {g['date']} (no simulation: the demos' goals):",
+                  "", "| | " + " | ".join(g["splits"]) + " |", "| --- |" + " --- |" * len(g["splits"]),
+                  "| mean goal of train in the anchor frame | " + " | ".join(
+                      f"{v['mean_goal_rmse']:.3f}" for v in g["splits"].values()) + " |",
+                  "| the same, turned with the anchor's true rotation (an oracle) | " + " | ".join(
+                      f"{v['rotated_mean_goal_rmse']:.3f}" for v in g["splits"].values()) + " |", "",
+                  "Anchor points on the hook (off the pole, near its top): " + ", ".join(
+                      f"{k.replace('fps_', 'after FPS to ')}: {v}" for k, v in hook.items()) + ".", ""]
     speed = RESULTS / "eval_benchmark.json"
     if args.task == "hangproccloth-simple" and speed.exists():
         b = json.loads(speed.read_text())
@@ -134,7 +147,8 @@ def main(argv: list[str] | None = None) -> None:
                   f"{b['sim_seconds_per_episode']:.2f} | {b['throughput_ratio_2_workers']:.2f} |", ""]
     elif timings:
         lines += ["## Seconds per episode", "", "Mean over each split's episodes, per worker process, from the same "
-                  "evaluations (two workers side by side):", "",
+                  "evaluations (two workers side by side, with other jobs on the machine; `benchmarks/` has the quiet-machine "
+                  "figures):", "",
                   "| | split | prediction | simulation |", "| --- | --- | --- | --- |", *timings, ""]
     tmp = out.with_name(f".{out.name}.tmp")
     tmp.write_text("\n".join(lines))
