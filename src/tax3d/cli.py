@@ -10,6 +10,7 @@ from tax3d.errors import UsageError
 COMMANDS = {
     "generate": ("tax3d.sim.generate", "generate demonstrations in the official file layout"),
     "train": ("tax3d.train", "train a TAX3D variant on demonstration folders"),
+    "train-dp3": ("tax3d.baselines.dp3.train", "train the DP3 baseline on demonstrations with trajectories"),
     "predict": ("tax3d.predict", "predict goal clouds for demonstration files with a checkpoint"),
     "eval": ("tax3d.evaluate", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
     "benchmark": ("tax3d.benchmark", "generate, train and evaluate a task for a list of variants, resumable"),

@@ -7,19 +7,18 @@ from __future__ import annotations
 
 import datetime
 import json
-import multiprocessing
 import os
 import platform
 import sys
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
 from tax3d.atomic import write_text
 from tax3d.errors import UsageError
+from tax3d.parallel import check_backend, run_each
 
 SPLIT_FOLDERS = {"train": ("train",), "unseen": ("unseen", "val"), "ood": ("ood", "val_ood")}
 
@@ -47,6 +46,10 @@ class Args:
     """closed loop: predict again every K environment steps (0: open loop, the paper's policy)"""
     workers: int = 2
     """worker processes, each with its own simulator and a copy of the model"""
+    backend: Literal["local", "ray"] = "local"
+    """local: a process pool on this machine; ray: Ray tasks (a local Ray instance, or the cluster at --address)"""
+    address: str | None = None
+    """with --backend ray: the address of an existing Ray cluster (default: start a local one)"""
     first_index: int = 0
     """index of the first fresh episode of each split, for splits without a demo folder"""
     seed: int = 0
@@ -80,14 +83,20 @@ class EvalJob:
 _PREDICTORS: dict = {}
 
 
+def load_model(checkpoint):
+    """A TAX3D checkpoint, or a DP3 baseline one (its config.json says "kind": "dp3")."""
+    from tax3d.baselines.dp3 import DP3, is_dp3_checkpoint
+    from tax3d.model.tax3d import Tax3D
+
+    return (DP3 if is_dp3_checkpoint(checkpoint) else Tax3D).from_pretrained(checkpoint)
+
+
 def _predictor(checkpoint: str):
     if checkpoint not in _PREDICTORS:
         import torch
 
-        from tax3d.model.tax3d import Tax3D
-
         torch.set_num_threads(1)
-        _PREDICTORS[checkpoint] = Tax3D.from_pretrained(checkpoint)
+        _PREDICTORS[checkpoint] = load_model(checkpoint)
     return _PREDICTORS[checkpoint]
 
 
@@ -100,9 +109,14 @@ def run_eval_job(job: EvalJob) -> dict:
     from tax3d.sim.tasks import get_task
 
     task = get_task(job.task)
-    policy = GoalPolicy(_predictor(job.checkpoint), job.samples, job.steps, job.seed, job.replan_every,
-                        trajectory=job.denoising,
-                        offset=task.policy_offset if job.offset is None else job.offset)
+    predictor = _predictor(job.checkpoint)
+    if predictor.config.model.variant == "dp3":  # a policy of its own: no goal, so no RMSE
+        from tax3d.baselines.dp3 import DP3Policy
+
+        policy = DP3Policy(predictor, job.seed)
+    else:
+        policy = GoalPolicy(predictor, job.samples, job.steps, job.seed, job.replan_every, trajectory=job.denoising,
+                            offset=task.policy_offset if job.offset is None else job.offset)
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
@@ -167,31 +181,17 @@ def plan_jobs(args: Args) -> list[EvalJob]:
     return jobs
 
 
-def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_eval_job) -> list[dict]:
-    """Episodes in worker processes; an episode that raises, or whose worker dies, is marked failed: no hang."""
+def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_eval_job, backend: str = "local",
+             address: str | None = None) -> list[dict]:
+    """Episodes in worker processes (or Ray tasks); an episode that raises, or whose worker dies, is marked failed:
+    no hang, and the other episodes go on."""
     from tqdm import tqdm
 
     results: list[dict] = []
     bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress, file=sys.stderr)
-    if workers == 1:
-        for job in jobs:
-            try:
-                results.append(fn(job))
-            except Exception as err:  # one broken episode must not lose the others
-                results.append(_failed(job, f"{type(err).__name__}: {err}"))
-            bar.update()
-    else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            futures = {pool.submit(fn, job): job for job in jobs}
-            for future in as_completed(futures):
-                try:
-                    results.append(future.result())
-                except BrokenProcessPool:
-                    results.append(_failed(futures[future], "worker process died"))
-                except Exception as err:
-                    results.append(_failed(futures[future], f"{type(err).__name__}: {err}"))
-                bar.update()
+    for i, result, error in run_each(fn, jobs, workers, backend, address):
+        results.append(result if error is None else _failed(jobs[i], f"{type(error).__name__}: {error}"))
+        bar.update()
     bar.close()
     order = {(j.split, j.name): i for i, j in enumerate(jobs)}
     return sorted(results, key=lambda r: order[(r["split"], r["name"])])
@@ -237,6 +237,10 @@ def summarise(results: list[dict], splits: list[str]) -> dict:
     return table
 
 
+def display_name(variant: str) -> str:
+    return "DP3" if variant == "dp3" else f"TAX3D-{variant.upper()}"
+
+
 def format_table(table: dict) -> str:
     splits = list(table)
     lines = [f"{'':<14}" + "".join(f"{s:>10}" for s in splits)]
@@ -250,18 +254,16 @@ def format_table(table: dict) -> str:
 
 
 def evaluate(args: Args, progress: bool = True) -> dict:
-    from tax3d.model.tax3d import Tax3D
     from tax3d.sim.tasks import get_task
 
     get_task(args.task)
-    if args.workers < 1:
-        raise UsageError(f"--workers {args.workers}: expected at least 1")
+    check_backend(args.backend, args.workers, args.address)
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
-    model = Tax3D.from_pretrained(args.checkpoint)  # fails early, in one line, on a bad checkpoint
+    model = load_model(args.checkpoint)  # fails early, in one line, on a bad checkpoint
     _check_task(model, args)
     jobs = plan_jobs(args)
-    results = run_jobs(jobs, args.workers, progress)
+    results = run_jobs(jobs, args.workers, progress, backend=args.backend, address=args.address)
     splits = list(dict.fromkeys(j.split for j in jobs))
     summary = {
         "checkpoint": str(args.checkpoint), "task": args.task, "variant": model.config.model.variant,
@@ -291,7 +293,7 @@ def _write_outputs(args: Args, summary: dict, results: list[dict]) -> None:
         from tax3d.report import write_report
 
         episodes = [r for r in results if r["action_pc"] is not None]
-        write_report(args.out, summary, episodes, title=f"TAX3D-{summary['variant'].upper()} on {args.task}")
+        write_report(args.out, summary, episodes, title=f"{display_name(summary['variant'])} on {args.task}")
 
 
 def _plain(value):
@@ -305,7 +307,7 @@ def _plain(value):
 def run(args: Args) -> int:
     out = evaluate(args)
     summary = out["summary"]
-    print(f"TAX3D-{summary['variant'].upper()} on {args.task}, checkpoint {args.checkpoint}")
+    print(f"{display_name(summary['variant'])} on {args.task}, checkpoint {args.checkpoint}")
     print(format_table(summary["splits"]))
     failed = sum(s["failed_runs"] for s in summary["splits"].values())
     if failed:

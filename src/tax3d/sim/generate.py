@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import math
-import multiprocessing
 import sys
 import tempfile
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -15,6 +13,7 @@ import numpy as np
 
 from tax3d.data.format import demo_index, is_valid_demo, list_demos, load_demo, save_demo
 from tax3d.errors import UsageError
+from tax3d.parallel import check_backend, run_each
 from tax3d.sim.bag import parse_bag_params
 from tax3d.sim.cloth import validate_cloth_params
 from tax3d.sim.env import process_env
@@ -36,6 +35,10 @@ class Args:
     """output folder for demo_N.npz files"""
     workers: int = 1
     """worker processes, each with its own PyBullet world and temporary mesh folder"""
+    backend: Literal["local", "ray"] = "local"
+    """local: a process pool on this machine; ray: Ray tasks (a local Ray instance, or the cluster at --address)"""
+    address: str | None = None
+    """with --backend ray: the address of an existing Ray cluster (default: start a local one)"""
     replay: Path | None = None
     """re-run the cloth parameters and anchor poses of the demo files in this folder"""
     max_attempts: int = 5
@@ -171,8 +174,7 @@ def _generate_jobs(args: Args) -> list[Job]:
 
 def generate(args: Args, progress: bool = True) -> dict:
     """Plan, skip what is already there, run the rest; returns the summary statistics."""
-    if args.workers < 1:
-        raise UsageError(f"--workers {args.workers}: expected at least 1")
+    check_backend(args.backend, args.workers, args.address)
     if args.steps < 1:
         raise UsageError(f"--steps {args.steps}: expected at least 1")
     if args.max_attempts < 1:
@@ -189,7 +191,7 @@ def generate(args: Args, progress: bool = True) -> dict:
         job.render, job.render_every, job.steps = args.render, max(1, args.render_every), args.steps
     todo = [j for j in jobs if not all(is_valid_demo(Path(args.out) / n) for n in j.names)]
     stats = {"planned": sum(len(j.names) for j in jobs), "skipped": sum(len(j.names) for j in jobs if j not in todo)}
-    results = _run(todo, args.workers, progress)
+    results = _run(todo, args, progress)
     stats.update(
         written=sum(len(r.written) for r in results),
         failed=[n for r in results for n in r.names if n not in r.written],
@@ -211,21 +213,16 @@ def _worst(figures: list[dict]) -> dict:
     return {k: max(f[when][k] for f in figures for when in ("before", "after")) for k in keys} if figures else {}
 
 
-def _run(jobs: list[Job], workers: int, progress: bool) -> list[JobResult]:
+def _run(jobs: list[Job], args: Args, progress: bool) -> list[JobResult]:
     from tqdm import tqdm
 
     bar = tqdm(total=len(jobs), desc="episodes", unit="cloth", disable=not progress, file=sys.stderr)
     results = []
-    if workers == 1:
-        for job in jobs:
-            results.append(run_job(job))
-            bar.update()
-    else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            for future in as_completed([pool.submit(run_job, j) for j in jobs]):
-                results.append(future.result())
-                bar.update()
+    for _, result, error in run_each(run_job, jobs, args.workers, args.backend, args.address):
+        if error is not None:
+            raise error
+        results.append(result)
+        bar.update()
     bar.close()
     return results
 

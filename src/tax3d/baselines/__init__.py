@@ -1,0 +1,1 @@
+"""Baselines the paper compares TAX3D with, run on the same demonstrations and rollouts."""

@@ -1,0 +1,179 @@
+"""`tax3d train-dp3`: fit the DP3 baseline on demos with trajectories (`tax3d generate --trajectories`).
+
+    tax3d train-dp3 --data data/demos/train --out runs/dp3 --preset cpu [--steps 2000]
+
+OUT gets config.json, log.jsonl (one line per step) and last/: a checkpoint directory (config.json and
+model.safetensors, the EMA weights, for `tax3d eval --checkpoint OUT/last`) plus training_state.pt to resume from.
+A run whose OUT already holds last/ continues from it. Each step's batch, rotations, diffusion steps and noise come
+from a generator seeded by (seed, step), so a resumed run sees what an uninterrupted one would.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+
+from tax3d.atomic import write_text
+from tax3d.baselines.dp3 import config as cfg
+from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
+from tax3d.baselines.dp3.model import DP3
+from tax3d.errors import UsageError
+from tax3d.train import STATE_NAME, find_last, save_checkpoint, truncate_log
+
+ADAM_BETAS = (0.95, 0.999)  # DP3's optimiser settings (docs/dp3.md)
+EMA_POWER, EMA_MAX = 0.75, 0.9999  # DP3's EMA: decay 1 - (1 + step)^-0.75, capped
+
+
+@dataclass
+class Args:
+    """Train the DP3 baseline. Options left out take the preset's value (or, when resuming, the run's)."""
+
+    data: tuple[Path, ...]
+    """demo folders (or demo files) written with `tax3d generate --trajectories`"""
+    out: Path = Path("runs/dp3")
+    """output folder: config.json, log.jsonl and last/"""
+    preset: Literal["paper", "cpu"] = "paper"
+    """paper: REFERENCE.md's DP3 (a GPU's work); cpu: a small model that trains in minutes on a CPU"""
+    steps: int | None = None
+    """training steps (default: the preset's, paper 112,500, cpu 3,000)"""
+    batch_size: int | None = None
+    """samples per step (default: the preset's, paper 128, cpu 32)"""
+    lr: float | None = None
+    """peak AdamW learning rate (default: the preset's, paper 1e-4, cpu 3e-4)"""
+    seed: int | None = None
+    """seed of the initial weights and of every step's batch, rotations and noise (default: 0)"""
+    device: str = "auto"
+    """auto (cuda when available), cpu or cuda"""
+    task: str | None = None
+    """the task the demos come from, recorded for `tax3d eval` to check"""
+
+
+def get_lr(step: int, c: cfg.TrainConfig) -> float:
+    """Linear warm-up, then cosine decay to 0 at the last step (DP3's schedule)."""
+    if step < c.warmup_steps:
+        return c.lr * (step + 1) / c.warmup_steps
+    progress = (step - c.warmup_steps) / max(1, c.steps - c.warmup_steps)
+    return c.lr * 0.5 * (1.0 + math.cos(math.pi * min(progress, 1.0)))
+
+
+def ema_decay(step: int) -> float:
+    """The EMA decay after `step` optimiser steps: 0 at first, so early averages follow the weights."""
+    return 0.0 if step <= 0 else min(EMA_MAX, 1.0 - (1.0 + step) ** -EMA_POWER)
+
+
+def pick_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name not in ("cpu", "cuda") and not name.startswith("cuda:"):
+        raise UsageError(f"--device {name!r}: expected auto, cpu or cuda")
+    if name != "cpu" and not torch.cuda.is_available():
+        raise UsageError(f"--device {name}: no CUDA device is available")
+    return torch.device(name)
+
+
+def resolve_config(args: Args, last: Path | None) -> cfg.DP3Config:
+    """The preset with the given options applied; when resuming, the run's saved config (its preset wins)."""
+    config = cfg.preset(args.preset) if last is None else cfg.load(last / "config.json")
+    train = {k: v for k, v in dict(steps=args.steps, batch_size=args.batch_size, lr=args.lr, seed=args.seed).items()
+             if v is not None}
+    config = dataclasses.replace(config, train=dataclasses.replace(config.train, **train))
+    if args.task is not None:
+        config = dataclasses.replace(config, data=dataclasses.replace(config.data, task=args.task))
+    return cfg.validate(config, "options")
+
+
+def step_batch(dataset: TrajectoryDataset, config: cfg.DP3Config, step: int, device: torch.device) -> tuple:
+    """(batch, t, noise) of one step, all drawn from a generator seeded by (seed, step)."""
+    seed = int(np.random.SeedSequence([config.train.seed, step]).generate_state(1)[0])
+    generator = torch.Generator().manual_seed(seed)
+    size = config.train.batch_size
+    rows = [dataset[int(i)] for i in torch.randint(len(dataset), (size,), generator=generator)]
+    batch = {k: torch.stack([r[k] for r in rows]) for k in rows[0]}
+    angles = torch.rand(size, generator=generator, dtype=torch.float64) * 2 * math.pi
+    if config.data.rotate:
+        batch = rotate_batch(batch, angles.float())
+    t = torch.randint(config.diffusion.train_steps, (size,), generator=generator)
+    noise = torch.randn(batch["action"].shape, generator=generator)
+    return {k: v.to(device) for k, v in batch.items()}, t.to(device), noise.to(device)
+
+
+def run(args: Args) -> int:
+    from tqdm.auto import tqdm
+
+    out = Path(args.out)
+    last = find_last(out)
+    config = resolve_config(args, last)
+    c = config.train
+    if c.threads > 0:
+        torch.set_num_threads(c.threads)
+    device = pick_device(args.device)
+    if not args.data:
+        raise UsageError("--data: no demonstration folder given")
+    m = config.model
+    dataset = TrajectoryDataset(args.data, m.horizon, m.n_obs_steps, config.data.num_action_points,
+                                config.data.num_anchor_points)
+
+    torch.manual_seed(c.seed)
+    model = DP3(config)
+    model.fit_normalizers(*dataset.normalizer_data())
+    model.to(device)
+    ema = copy.deepcopy(model).requires_grad_(False)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=c.lr, betas=ADAM_BETAS, weight_decay=c.weight_decay)
+    step, elapsed = 0, 0.0
+    if last is not None:
+        state = torch.load(last / STATE_NAME, map_location=device, weights_only=True)
+        model.load_weights(state["model"], str(last / STATE_NAME))
+        ema.load_weights(state["ema"], str(last / STATE_NAME))
+        optimizer.load_state_dict(state["optimizer"])
+        step, elapsed = int(state["step"]), float(state["elapsed"])
+        print(f"resuming {out} at step {step}", file=sys.stderr)
+        truncate_log(out / "log.jsonl", step)
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "config.json", cfg.dumps(config))
+
+    log = open(out / "log.jsonl", "a")
+    bar = tqdm(total=c.steps, initial=step, desc="train-dp3", dynamic_ncols=True)
+    model.train()
+    started = time.time() - elapsed
+    while step < c.steps:
+        batch, t, noise = step_batch(dataset, config, step, device)
+        lr = get_lr(step, c)
+        for group in optimizer.param_groups:
+            group["lr"] = lr
+        loss = model.loss(batch, t, noise)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        step += 1
+        with torch.no_grad():
+            decay = ema_decay(step)
+            for e, p in zip(ema.parameters(), model.parameters()):
+                e.lerp_(p, 1.0 - decay)
+        bar.update(1)
+        record = {"step": step, "loss": float(loss.detach()), "lr": lr, "seconds": round(time.time() - started, 2)}
+        if step % c.save_every == 0 or step == c.steps:
+            state = {"model": model.state_dict(), "ema": ema.state_dict(), "optimizer": optimizer.state_dict(),
+                     "step": step, "elapsed": time.time() - started}
+            save_checkpoint(out, "last", ema, ema.state_dict(), state)
+            bar.set_postfix(loss=f"{record['loss']:.4f}")
+        log.write(json.dumps(record) + "\n")
+        log.flush()
+    bar.close()
+    log.close()
+    return 0
+
+
+if __name__ == "__main__":
+    import tyro
+
+    sys.exit(run(tyro.cli(Args)))
