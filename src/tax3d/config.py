@@ -91,6 +91,8 @@ class TrainConfig:
     """torch CPU threads (0: torch's default)"""
     device: str = "auto"
     """auto (cuda when available), cpu or cuda"""
+    precision: Literal["fp32", "bf16"] = "fp32"
+    """bf16: the network's forward under bfloat16 autocast (weights, optimizer and diffusion maths stay fp32)"""
 
 
 @dataclass

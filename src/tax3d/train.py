@@ -5,6 +5,9 @@
 OUT gets config.json (the resolved configuration), log.jsonl (one line per logged step), last/ (config.json,
 model.safetensors and training_state.pt, rewritten atomically at every validation) and best/ (the weights with
 the lowest validation min-of-samples RMSE). A run whose OUT already holds last/ continues from it.
+
+Under torchrun (`torchrun --nproc_per_node N -m tax3d.cli train ...`, docs/scaling.md) each process takes its
+share of every global batch, DistributedDataParallel averages the gradients, and rank 0 alone validates and writes.
 """
 
 from __future__ import annotations
@@ -23,9 +26,12 @@ from typing import Literal
 
 import numpy as np
 import torch
+from torch import nn
+from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader, Dataset, Sampler
 
 from tax3d import config as cfg
+from tax3d import distributed
 from tax3d.atomic import write_text
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import load_demo
@@ -67,10 +73,13 @@ class StepBatches(Sampler):
     """Batches of (epoch, index) pairs from a stream of per-epoch permutations, starting at a given step.
 
     Batch s holds stream positions s * B .. (s + 1) * B - 1, so a resumed run sees exactly the batches it would
-    have seen without the interruption."""
+    have seen without the interruption. With world_size W, rank r gets rows r * B / W .. (r + 1) * B / W - 1 of
+    each batch: together the ranks see the batches of one process."""
 
-    def __init__(self, size: int, batch_size: int, seed: int, start_step: int = 0):
+    def __init__(self, size: int, batch_size: int, seed: int, start_step: int = 0, rank: int = 0,
+                 world_size: int = 1):
         self.size, self.batch_size, self.seed, self.start_step = size, batch_size, seed, start_step
+        self.share = distributed.World(rank, world_size).share(batch_size)
 
     def permutation(self, epoch: int) -> list[int]:
         generator = torch.Generator().manual_seed(int(np.random.SeedSequence([self.seed, epoch]).generate_state(1)[0]))
@@ -87,7 +96,7 @@ class StepBatches(Sampler):
                     epoch, order = e, self.permutation(e)
                 batch.append((e, order[i]))
                 position += 1
-            yield batch
+            yield batch[self.share]
 
 
 class EpochItems(Dataset):
@@ -196,12 +205,84 @@ def pick_device(name: str) -> torch.device:
     return torch.device(name)
 
 
+def native_bf16(device: torch.device) -> bool:
+    with torch.cuda.device(device):
+        try:
+            return torch.cuda.is_bf16_supported(including_emulation=False)
+        except TypeError:  # older torch has no including_emulation argument
+            return torch.cuda.is_bf16_supported()
+
+
+def pick_precision(name: str, device: torch.device) -> torch.dtype | None:
+    """The autocast dtype of the network's forward: None for fp32."""
+    if name == "fp32":
+        return None
+    if name != "bf16":
+        raise UsageError(f"--train.precision {name!r}: expected fp32 or bf16")
+    if device.type == "cuda" and not native_bf16(device):
+        raise UsageError(f"--train.precision bf16: {device} has no native bfloat16 support; expected "
+                         f"--train.precision fp32 on this GPU")
+    return torch.bfloat16
+
+
+# --- the loss --------------------------------------------------------------------------------------------------
+
+
+def float_output(module: nn.Module, args, output: torch.Tensor) -> torch.Tensor:
+    """The network's output as fp32, so that the diffusion maths after it (vb terms, logs, exps) run in fp32."""
+    return output.float()
+
+
+class TrainingLoss(nn.Module):
+    """model.loss as a module, so that DistributedDataParallel can wrap it; under autocast to dtype when given."""
+
+    def __init__(self, model: Tax3D, dtype: torch.dtype | None, device: torch.device):
+        super().__init__()
+        self.model, self.dtype, self.device_type = model, dtype, device.type
+        if dtype is not None:
+            model.net.register_forward_hook(float_output)
+
+    def forward(self, batch: dict, t: torch.Tensor, noise: torch.Tensor) -> dict:
+        if self.dtype is None:
+            return self.model.loss(batch, t, noise)
+        # autocast lowers only its listed ops (linear, matmul, attention); the diffusion code has none of them
+        with torch.autocast(self.device_type, dtype=self.dtype):
+            return self.model.loss(batch, t, noise)
+
+
+def training_loss(model: Tax3D, dtype: torch.dtype | None, device: torch.device, world: distributed.World):
+    loss = TrainingLoss(model, dtype, device)
+    if not world.distributed:
+        return loss
+    return DistributedDataParallel(loss, device_ids=[device.index] if device.type == "cuda" else None)
+
+
+def mean_losses(world: distributed.World, losses: dict, out_of_time: bool) -> tuple[dict, bool]:
+    """The losses of the whole global batch (the mean over ranks), and whether any rank ran out of time."""
+    if not world.distributed:
+        return {k: float(v.detach()) for k, v in losses.items()}, out_of_time
+    flag = losses["loss"].new_tensor(float(out_of_time))
+    values = distributed.mean(world, torch.stack([*(v.detach().float() for v in losses.values()), flag])).tolist()
+    return dict(zip(losses, values[:-1])), values[-1] > 0
+
+
 # --- the loop --------------------------------------------------------------------------------------------------
 
 
-def run(args: Args) -> int:
-    from tqdm.auto import tqdm
+def load_state(last: Path, model: Tax3D, optimizer, ema, noise_gen, device) -> tuple[int, float, float]:
+    """Restore model, optimizer, EMA and generators from last/; returns step, best and elapsed seconds."""
+    state = torch.load(last / STATE_NAME, map_location=device, weights_only=True)
+    model.load_weights(state["model"], str(last / STATE_NAME))
+    optimizer.load_state_dict(state["optimizer"])
+    if ema is not None:
+        ema.load_state_dict(state["ema"] if "ema" in state else state["model"])
+    noise_gen.set_state(state["noise_rng"].cpu())  # a CPU ByteTensor, for CUDA generators too (ATen check_rng_state)
+    torch.set_rng_state(state["torch_rng"].cpu())
+    return int(state["step"]), float(state["best"]), float(state["elapsed"])
 
+
+def run(args: Args) -> int:
+    world = distributed.from_env()
     out = Path(args.out)
     last = find_last(out)
     if args.resume and last is None:
@@ -210,16 +291,29 @@ def run(args: Args) -> int:
     c = config.train
     if not config.data.train:
         raise UsageError("--data.train: no training demonstration folder given")
+    distributed.check_batch_size(world, c.batch_size)
     if c.threads > 0:
         torch.set_num_threads(c.threads)
-    device = pick_device(c.device)
+    device = distributed.rank_device(world, c.device, pick_device(c.device))
+    dtype = pick_precision(c.precision, device)
 
     dataset = DemoDataset(config.data.train, config.model.variant, train=True, rotate=config.data.rotate,
                           num_action_points=config.data.num_action_points,
                           num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size,
                           target_scale=config.data.target_scale, seed=c.seed)
     val_demos = load_val_demos(config)
+    distributed.start(world, device)
+    try:
+        return fit(config, out, last, dataset, val_demos, device, dtype, world)
+    finally:
+        distributed.stop(world)
 
+
+def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, val_demos: list[dict],
+        device: torch.device, dtype: torch.dtype | None, world: distributed.World) -> int:
+    from tqdm.auto import tqdm
+
+    c = config.train
     torch.manual_seed(c.seed)
     model = Tax3D(config).to(device)
     ema = copy.deepcopy(model.net).requires_grad_(False) if c.ema > 0 else None
@@ -228,34 +322,33 @@ def run(args: Args) -> int:
     step, best, elapsed = 0, float("inf"), 0.0
 
     if last is not None:
-        state = torch.load(last / STATE_NAME, map_location=device, weights_only=True)
-        model.load_weights(state["model"], str(last / STATE_NAME))
-        optimizer.load_state_dict(state["optimizer"])
-        if ema is not None:
-            ema.load_state_dict(state["ema"] if "ema" in state else state["model"])
-        noise_gen.set_state(state["noise_rng"].cpu() if device.type == "cpu" else state["noise_rng"])
-        torch.set_rng_state(state["torch_rng"].cpu())
-        step, best, elapsed = int(state["step"]), float(state["best"]), float(state["elapsed"])
-        print(f"resuming {out} at step {step}", file=sys.stderr)
-        truncate_log(out / "log.jsonl", step)
-    out.mkdir(parents=True, exist_ok=True)
-    cfg.save(config, out / "config.json")
+        step, best, elapsed = load_state(last, model, optimizer, ema, noise_gen, device)
+        if world.main:
+            print(f"resuming {out} at step {step}", file=sys.stderr)
+            truncate_log(out / "log.jsonl", step)
+    if world.main:
+        out.mkdir(parents=True, exist_ok=True)
+        cfg.save(config, out / "config.json")
 
-    loader = DataLoader(EpochItems(dataset), batch_sampler=StepBatches(len(dataset), c.batch_size, c.seed, step),
+    loss_fn = training_loss(model, dtype, device, world)
+    sampler = StepBatches(len(dataset), c.batch_size, c.seed, step, world.rank, world.size)
+    loader = DataLoader(EpochItems(dataset), batch_sampler=sampler,
                         num_workers=c.num_workers, persistent_workers=c.num_workers > 0)
     batches = iter(loader)
-    log = open(out / "log.jsonl", "a")
-    bar = tqdm(total=c.steps, initial=step, desc="train", dynamic_ncols=True)
+    log = open(out / "log.jsonl", "a") if world.main else None
+    bar = tqdm(total=c.steps, initial=step, desc="train", dynamic_ncols=True, disable=not world.main)
     model.train()
     started = time.time() - elapsed
+    share = world.share(c.batch_size)
     while step < c.steps:
         batch = {k: v.to(device) for k, v in next(batches).items()}
         lr = get_lr(step, c)
         for group in optimizer.param_groups:
             group["lr"] = lr
-        t = model.diffusion.sample_timesteps(c.batch_size, device, noise_gen)
-        noise = torch.randn(batch["target"].shape, generator=noise_gen, device=device)
-        losses = model.loss(batch, t, noise)
+        # every rank draws the timesteps and noise of the whole global batch and keeps its own rows
+        t = model.diffusion.sample_timesteps(c.batch_size, device, noise_gen)[share]
+        noise = torch.randn((c.batch_size, *batch["target"].shape[1:]), generator=noise_gen, device=device)[share]
+        losses = loss_fn(batch, t, noise)
         optimizer.zero_grad(set_to_none=True)
         losses["loss"].backward()
         if c.grad_clip > 0:
@@ -269,30 +362,35 @@ def run(args: Args) -> int:
         bar.update(1)
 
         out_of_time = c.time_limit > 0 and time.time() - started > 60 * c.time_limit
-        record = {"step": step, **{k: float(v.detach()) for k, v in losses.items()}, "lr": lr}
+        values, out_of_time = mean_losses(world, losses, out_of_time)
+        record = {"step": step, **values, "lr": lr}
         if step % c.val_every == 0 or step == c.steps or out_of_time:
-            weights = (ema if ema is not None else model.net).state_dict()
-            if val_demos:
-                evaluated = copy.deepcopy(model)
-                evaluated.net.load_state_dict(weights)
-                record.update(validate(evaluated, val_demos, c.val_samples, seed=c.seed))
-                if record["val_rmse"] < best:
-                    best = record["val_rmse"]
-                    save_checkpoint(out, "best", model, weights, None)
-            state = {"model": model.net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
-                     "best": best, "elapsed": time.time() - started, "noise_rng": noise_gen.get_state(),
-                     "torch_rng": torch.get_rng_state()}
-            if ema is not None:
-                state["ema"] = ema.state_dict()
-            save_checkpoint(out, "last", model, weights, state)
-            bar.set_postfix(loss=f"{record['loss']:.4f}", val=f"{record.get('val_rmse', float('nan')):.3f}")
-        record["seconds"] = round(time.time() - started, 2)
-        log.write(json.dumps(record) + "\n")
-        log.flush()
+            if world.main:
+                weights = (ema if ema is not None else model.net).state_dict()
+                if val_demos:
+                    evaluated = copy.deepcopy(model)
+                    evaluated.net.load_state_dict(weights)
+                    record.update(validate(evaluated, val_demos, c.val_samples, seed=c.seed))
+                    if record["val_rmse"] < best:
+                        best = record["val_rmse"]
+                        save_checkpoint(out, "best", model, weights, None)
+                state = {"model": model.net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
+                         "best": best, "elapsed": time.time() - started, "noise_rng": noise_gen.get_state(),
+                         "torch_rng": torch.get_rng_state()}
+                if ema is not None:
+                    state["ema"] = ema.state_dict()
+                save_checkpoint(out, "last", model, weights, state)
+                bar.set_postfix(loss=f"{record['loss']:.4f}", val=f"{record.get('val_rmse', float('nan')):.3f}")
+            distributed.barrier(world)
+        if world.main:
+            record["seconds"] = round(time.time() - started, 2)
+            log.write(json.dumps(record) + "\n")
+            log.flush()
         if out_of_time:
             break
     bar.close()
-    log.close()
+    if log is not None:
+        log.close()
     return 0
 
 
