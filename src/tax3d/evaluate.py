@@ -50,6 +50,8 @@ class Args:
     """local: a process pool on this machine; ray: Ray tasks (a local Ray instance, or the cluster at --address)"""
     address: str | None = None
     """with --backend ray: the address of an existing Ray cluster (default: start a local one)"""
+    device: str = "cpu"
+    """where each worker's model predicts: cpu, cuda, cuda:K or auto (CUDA when there is one)"""
     first_index: int = 0
     """index of the first fresh episode of each split, for splits without a demo folder"""
     seed: int = 0
@@ -78,26 +80,29 @@ class EvalJob:
     denoising: bool = False
     task: str = "hangproccloth-simple"
     offset: tuple | None = None  # gripper-target offset; None: the task's
+    device: str = "cpu"
 
 
 _PREDICTORS: dict = {}
 
 
-def load_model(checkpoint):
-    """A TAX3D checkpoint, or a DP3 baseline one (its config.json says "kind": "dp3")."""
+def load_model(checkpoint, device: str = "cpu"):
+    """A TAX3D checkpoint, or a DP3 baseline one (its config.json says "kind": "dp3"), on `device`."""
     from tax3d.baselines.dp3 import DP3, is_dp3_checkpoint
+    from tax3d.devices import pick_device
     from tax3d.model.tax3d import Tax3D
 
-    return (DP3 if is_dp3_checkpoint(checkpoint) else Tax3D).from_pretrained(checkpoint)
+    model = (DP3 if is_dp3_checkpoint(checkpoint) else Tax3D).from_pretrained(checkpoint)
+    return model.to(pick_device(device))
 
 
-def _predictor(checkpoint: str):
-    if checkpoint not in _PREDICTORS:
+def _predictor(checkpoint: str, device: str = "cpu"):
+    if (checkpoint, device) not in _PREDICTORS:
         import torch
 
         torch.set_num_threads(1)
-        _PREDICTORS[checkpoint] = load_model(checkpoint)
-    return _PREDICTORS[checkpoint]
+        _PREDICTORS[checkpoint, device] = load_model(checkpoint, device)
+    return _PREDICTORS[checkpoint, device]
 
 
 def run_eval_job(job: EvalJob) -> dict:
@@ -109,7 +114,7 @@ def run_eval_job(job: EvalJob) -> dict:
     from tax3d.sim.tasks import get_task
 
     task = get_task(job.task)
-    predictor = _predictor(job.checkpoint)
+    predictor = _predictor(job.checkpoint, getattr(job, "device", "cpu"))
     if predictor.config.model.variant == "dp3":  # a policy of its own: no goal, so no RMSE
         from tax3d.baselines.dp3 import DP3Policy
 
@@ -158,7 +163,7 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         split = get_split(split_name)
         folder = _split_folder(args.data, split.name)
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
-                      replan_every=args.replan_every, task=task.name,
+                      replan_every=args.replan_every, task=task.name, device=args.device,
                       offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset))
         if folder is not None:
             paths = list_demos(folder)[: args.episodes]
@@ -260,7 +265,7 @@ def evaluate(args: Args, progress: bool = True) -> dict:
     check_backend(args.backend, args.workers, args.address)
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
-    model = load_model(args.checkpoint)  # fails early, in one line, on a bad checkpoint
+    model = load_model(args.checkpoint, args.device)  # fails early, in one line, on a bad checkpoint or device
     _check_task(model, args)
     jobs = plan_jobs(args)
     results = run_jobs(jobs, args.workers, progress, backend=args.backend, address=args.address)

@@ -24,6 +24,7 @@ from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
 from tax3d.metrics import MeanGoalBaseline, rmse
+from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
 
 
@@ -52,6 +53,8 @@ class Args:
     """torch CPU threads (0: torch's default)"""
     batch_scenes: int = 8
     """demos denoised together in one batch"""
+    device: str = "cpu"
+    """cpu, cuda, cuda:K or auto (CUDA when there is one)"""
 
 
 def run(args: Args) -> int:
@@ -59,7 +62,8 @@ def run(args: Args) -> int:
         raise UsageError(f"--samples {args.samples}: expected a positive number")
     if args.threads > 0:
         torch.set_num_threads(args.threads)
-    model = Tax3D.from_pretrained(args.checkpoint, variant=args.variant)
+    device = pick_device(args.device)
+    model = Tax3D.from_pretrained(args.checkpoint, variant=args.variant, map_location=device)
     files = demo_files(args.demos)
     demos = [load_demo(path) for path in files]
 

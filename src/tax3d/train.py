@@ -31,6 +31,7 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader, Dataset, Sampler
 
 from tax3d import config as cfg
+from tax3d import devices
 from tax3d import distributed
 from tax3d.atomic import write_text
 from tax3d.data.dataset import DemoDataset, demo_files
@@ -196,13 +197,7 @@ def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.Config:
 
 
 def pick_device(name: str) -> torch.device:
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if name == "cuda" and not torch.cuda.is_available():
-        raise UsageError("--train.device cuda: no CUDA device is available")
-    if name not in ("cpu", "cuda") and not name.startswith("cuda:"):
-        raise UsageError(f"--train.device {name!r}: expected auto, cpu or cuda")
-    return torch.device(name)
+    return devices.pick_device(name, "--train.device")
 
 
 def native_bf16(device: torch.device) -> bool:

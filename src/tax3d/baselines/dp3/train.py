@@ -27,6 +27,7 @@ from tax3d.atomic import write_text
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
 from tax3d.baselines.dp3.model import DP3
+from tax3d.devices import pick_device
 from tax3d.errors import UsageError
 from tax3d.train import STATE_NAME, find_last, save_checkpoint, truncate_log
 
@@ -69,16 +70,6 @@ def get_lr(step: int, c: cfg.TrainConfig) -> float:
 def ema_decay(step: int) -> float:
     """The EMA decay after `step` optimiser steps: 0 at first, so early averages follow the weights."""
     return 0.0 if step <= 0 else min(EMA_MAX, 1.0 - (1.0 + step) ** -EMA_POWER)
-
-
-def pick_device(name: str) -> torch.device:
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if name not in ("cpu", "cuda") and not name.startswith("cuda:"):
-        raise UsageError(f"--device {name!r}: expected auto, cpu or cuda")
-    if name != "cpu" and not torch.cuda.is_available():
-        raise UsageError(f"--device {name}: no CUDA device is available")
-    return torch.device(name)
 
 
 def resolve_config(args: Args, last: Path | None) -> cfg.DP3Config:

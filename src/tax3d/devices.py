@@ -1,0 +1,20 @@
+"""The torch device a command runs on, from its `--device`-style option: auto, cpu, cuda or cuda:K."""
+
+from __future__ import annotations
+
+import torch
+
+from tax3d.errors import UsageError
+
+
+def pick_device(name: str, option: str = "--device") -> torch.device:
+    """auto: CUDA when there is one, else the CPU. A one-line UsageError for a name torch cannot use here."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name not in ("cpu", "cuda") and not (name.startswith("cuda:") and name[5:].isdigit()):
+        raise UsageError(f"{option} {name!r}: expected auto, cpu, cuda or cuda:K")
+    if name != "cpu" and not torch.cuda.is_available():
+        raise UsageError(f"{option} {name}: no CUDA device is available")
+    if name.startswith("cuda:") and int(name[5:]) >= torch.cuda.device_count():
+        raise UsageError(f"{option} {name}: only {torch.cuda.device_count()} CUDA devices are visible")
+    return torch.device(name)
