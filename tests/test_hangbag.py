@@ -158,7 +158,7 @@ def test_goal_policy_adds_the_task_offset_to_the_predicted_grip_vertices():
 
     policy = GoalPolicy(Predictor(), offset=get_task("hangbag").policy_offset)(Env(), State())
     grips = list(Env.mesh.grip_vertices())
-    assert np.allclose(policy.targets(State.cloth), State.cloth[grips] + [1.0, 1.5, 4.0])
+    assert np.allclose(policy.targets(State.cloth), State.cloth[grips] + [1.0, 2.0, 3.0] + [0.0, 0.0, 0.5])
 
 
 def test_eval_plans_hangbag_episodes_with_the_bag_and_task():
