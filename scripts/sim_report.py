@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
+
+from tax3d.atomic import write_text
 
 RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
 
@@ -56,9 +57,7 @@ def main() -> None:
     if bench:
         lines += ["## Speed", "", provenance(bench), "", "```json", json.dumps(bench, indent=2), "```", ""]
     out = RESULTS / "hangproccloth-sim.md"
-    tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text("\n".join(lines))
-    os.replace(tmp, out)
+    write_text(out, "\n".join(lines))
     print(out)
 
 

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
+
+from tax3d.atomic import atomic_write, write_text
 
 SPLITS = ("train", "unseen", "ood")
 RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
@@ -83,9 +84,7 @@ def plot_success(bars: list, path: Path) -> str:
     ax.set_ylabel("success rate")
     ax.legend(fontsize=7, ncols=3, loc="upper center")
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, path)
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     return path.name
 
 
@@ -181,9 +180,7 @@ def main(argv: list[str] | None = None) -> None:
                   "evaluations (two workers side by side, with other jobs on the machine; `benchmarks/` has the quiet-machine "
                   "figures):", "",
                   "| | split | prediction | simulation |", "| --- | --- | --- | --- |", *timings, ""]
-    tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text("\n".join(lines))
-    os.replace(tmp, out)
+    write_text(out, "\n".join(lines))
     print(out)
 
 

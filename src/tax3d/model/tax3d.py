@@ -14,23 +14,17 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn as nn
-from safetensors.torch import load_file, save_file
+from safetensors.torch import save_file
 
 from tax3d import config as cfg
 from tax3d.atomic import atomic_write
+from tax3d.checkpoint import (CONFIG_NAME, WEIGHTS_NAME, CheckpointError, check_directory, load_checked,
+                              read_weights)
 from tax3d.data.dataset import frame_inputs, to_world, variant_spec
 from tax3d.errors import UsageError
 from tax3d.geometry import farthest_point_sample
 from tax3d.model.diffusion import GaussianDiffusion, linear_betas
 from tax3d.model.dit import DiTPointCloudCross, DiTPointCloudScene
-
-CONFIG_NAME = "config.json"
-WEIGHTS_NAME = "model.safetensors"
-
-
-class CheckpointError(UsageError):
-    """A checkpoint directory that is missing, incomplete, or does not match its configuration."""
-
 
 def build_network(config: cfg.Config) -> nn.Module:
     spec = variant_spec(config.model.variant)
@@ -221,36 +215,18 @@ class Tax3D(nn.Module):
     @classmethod
     def from_pretrained(cls, directory, variant: str | None = None, map_location="cpu") -> "Tax3D":
         """Load a checkpoint directory. `variant`, when given, must be the checkpoint's."""
-        directory = Path(directory)
-        if not directory.is_dir():
-            raise CheckpointError(f"{directory}: no such checkpoint directory")
-        for name in (CONFIG_NAME, WEIGHTS_NAME):
-            if not (directory / name).is_file():
-                raise CheckpointError(f"{directory}: incomplete checkpoint, {name} is missing")
+        directory = check_directory(directory)
         config = cfg.load(directory / CONFIG_NAME)
         if variant is not None and variant_spec(variant).name != config.model.variant:
             raise CheckpointError(f"{directory}: the checkpoint is variant '{config.model.variant}', "
                                   f"not the requested '{variant_spec(variant).name}'")
         model = cls(config)
-        try:
-            state = load_file(str(directory / WEIGHTS_NAME), device=str(map_location))
-        except Exception as err:  # safetensors raises its own error types for corrupt headers
-            raise CheckpointError(f"{directory / WEIGHTS_NAME}: unreadable weights ({err})") from None
-        model.load_weights(state, str(directory / WEIGHTS_NAME))
+        model.load_weights(read_weights(directory, map_location), str(directory / WEIGHTS_NAME))
         return model.to(map_location).eval()
 
     def load_weights(self, state: dict, where: str = "weights") -> None:
         """Load a network state dict, with a one-line error when it does not fit this configuration."""
-        expected = self.net.state_dict()
-        missing = sorted(set(expected) - set(state))
-        unexpected = sorted(set(state) - set(expected))
-        wrong = sorted(k for k in set(expected) & set(state) if expected[k].shape != state[k].shape)
-        if missing or unexpected or wrong:
-            detail = (f"missing {missing[:3]}" if missing else f"unexpected {unexpected[:3]}" if unexpected
-                      else f"{wrong[0]} has shape {tuple(state[wrong[0]].shape)}, "
-                           f"expected {tuple(expected[wrong[0]].shape)}")
-            raise CheckpointError(f"{where}: weights do not match config.json ({detail})")
-        self.net.load_state_dict(state)
+        load_checked(self.net, state, where)
 
 
 def read_config(directory) -> dict:

@@ -14,14 +14,14 @@ from pathlib import Path
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
-from safetensors.torch import load_file, save_file
+from safetensors.torch import save_file
 
 from tax3d.atomic import atomic_write, write_text
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.network import ConditionalUnet1D, ObservationEncoder
 from tax3d.baselines.dp3.normalizer import MinMaxNormalizer
 from tax3d.baselines.dp3.scheduler import DDIM
-from tax3d.model.tax3d import CONFIG_NAME, WEIGHTS_NAME, CheckpointError
+from tax3d.checkpoint import CONFIG_NAME, WEIGHTS_NAME, check_directory, load_checked, read_weights
 
 STATE_DIM = 12  # two grippers' positions and velocities (REFERENCE.md, "DP3 baseline")
 ACTION_DIM = 6  # two absolute gripper targets
@@ -94,28 +94,11 @@ class DP3(nn.Module):
 
     @classmethod
     def from_pretrained(cls, directory, map_location="cpu") -> "DP3":
-        directory = Path(directory)
-        if not directory.is_dir():
-            raise CheckpointError(f"{directory}: no such checkpoint directory")
-        for name in (CONFIG_NAME, WEIGHTS_NAME):
-            if not (directory / name).is_file():
-                raise CheckpointError(f"{directory}: incomplete checkpoint, {name} is missing")
+        directory = check_directory(directory)
         model = cls(cfg.load(directory / CONFIG_NAME))
-        try:
-            state = load_file(str(directory / WEIGHTS_NAME), device=str(map_location))
-        except Exception as err:  # safetensors raises its own error types for corrupt headers
-            raise CheckpointError(f"{directory / WEIGHTS_NAME}: unreadable weights ({err})") from None
-        model.load_weights(state, str(directory / WEIGHTS_NAME))
+        model.load_weights(read_weights(directory, map_location), str(directory / WEIGHTS_NAME))
         return model.to(map_location).eval()
 
     def load_weights(self, state: dict, where: str = "weights") -> None:
         """Load a state dict, with a one-line error when it does not fit this configuration."""
-        expected = self.state_dict()
-        missing, unexpected = sorted(set(expected) - set(state)), sorted(set(state) - set(expected))
-        wrong = sorted(k for k in set(expected) & set(state) if expected[k].shape != state[k].shape)
-        if missing or unexpected or wrong:
-            detail = (f"missing {missing[:3]}" if missing else f"unexpected {unexpected[:3]}" if unexpected
-                      else f"{wrong[0]} has shape {tuple(state[wrong[0]].shape)}, "
-                           f"expected {tuple(expected[wrong[0]].shape)}")
-            raise CheckpointError(f"{where}: weights do not match config.json ({detail})")
-        self.load_state_dict(state)
+        load_checked(self, state, where)
