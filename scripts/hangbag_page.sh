@@ -21,6 +21,7 @@ NOTE2=$(cat <<'TEXT'
 TEXT
 )
 NOTE3=$(cat <<'TEXT'
+**The ablations** (about a third of TAX3D's steps, evaluated on all 16 `train` demos and the first 20 of `unseen` and `ood`) point the paper's way, though not at equal budget. The world-frame variants CD-W and CP-W fail out of distribution, where the anchor is lifted and moved, with RMSEs of several units, as in the paper. Without the action cloud as context (NAC) the predicted bag loses its shape: RMSE far above the mean-goal floor and almost no success (the paper's CD-NAC kept some). The scene-level SD and SP fail everywhere, as in the paper, but here they did not even fit `train`, where the paper's did: their self-attention over the whole scene learned least in the short budget. In distribution the -W variants trail CD and CP, where the paper's lead; with a third of the steps that comparison says little.
 TEXT
 )
 python scripts/task_report.py "${ARGS[@]}" ${B:+--baseline "${B[@]}"} --goal-spread docs/results/hangbag_goal_spread.json --plot \

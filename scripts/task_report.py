@@ -72,7 +72,7 @@ def plot_success(bars: list, path: Path) -> str:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(max(6.0, 0.55 * len(bars) + 2), 3.6))
+    fig = Figure(figsize=(max(6.0, 0.55 * len(bars) + 2), 4.8))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     width = 0.27
