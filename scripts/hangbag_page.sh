@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ARGS=(--task hangbag --eval CD=runs/eval-bag-cd CP=runs/eval-bag-cp)
-for v in cd_w:CD-W cp_w:CP-W cd_nac:CD-NAC cp_nac:CP-NAC sd:SD sp:SP; do
+for v in cd_w:CD-W cp_w:CP-W cd_nac:CD-NAC cp_nac:CP-NAC sd:SD sp:SP dp3:DP3; do
   d=runs/eval-bag-${v%%:*}; [ -f $d/results.json ] && ARGS+=("${v##*:}=$d")
 done
 [ -f runs/eval-bag-cd-reference-offset/results.json ] && ARGS+=("TAX3D-CD with REFERENCE.md's offset=runs/eval-bag-cd-reference-offset")
@@ -21,7 +21,7 @@ NOTE2=$(cat <<'TEXT'
 TEXT
 )
 NOTE3=$(cat <<'TEXT'
-**The ablations** (about a third of TAX3D's steps, evaluated on all 16 `train` demos and the first 20 of `unseen` and `ood`) point the paper's way, though not at equal budget. The world-frame variants CD-W and CP-W fail out of distribution, where the anchor is lifted and moved, with RMSEs of several units, as in the paper. Without the action cloud as context (NAC) the predicted bag loses its shape: RMSE far above the mean-goal floor and almost no success (the paper's CD-NAC kept some). The scene-level SD and SP fail everywhere, as in the paper, but here they did not even fit `train`, where the paper's did: their self-attention over the whole scene learned least in the short budget. In distribution the -W variants trail CD and CP, where the paper's lead; with a third of the steps that comparison says little.
+**The ablations** (about a third of TAX3D's steps, evaluated on all 16 `train` demos and the first 20 of `unseen` and `ood`) point the paper's way, though not at equal budget. The world-frame variants CD-W and CP-W fail out of distribution, where the anchor is lifted and moved, with RMSEs of several units, as in the paper. Without the action cloud as context (NAC) the predicted bag loses its shape: RMSE far above the mean-goal floor and almost no success (the paper's CD-NAC kept some). The scene-level SD and SP fail everywhere, as in the paper, but here they did not even fit `train`, where the paper's did: their self-attention over the whole scene learned least in the short budget. In distribution the -W variants trail CD and CP, where the paper's lead; with a third of the steps that comparison says little. DP3, a policy trained on the expert's per-step trajectories with its own `cpu` preset, hangs most `train` bags, fewer `unseen` ones and none out of distribution: the paper's finding that DP3 does not carry over to new anchor poses.
 TEXT
 )
 python scripts/task_report.py "${ARGS[@]}" ${B:+--baseline "${B[@]}"} --goal-spread docs/results/hangbag_goal_spread.json --plot \
@@ -29,6 +29,7 @@ python scripts/task_report.py "${ARGS[@]}" ${B:+--baseline "${B[@]}"} --goal-spr
   --train-command "the same for CP :: --model.variant cp --out runs/bag-cp" \
   --train-command "the same on this 2-core CPU: a 100-step probe ran 100 steps in 36 s with an evaluation beside it, so 4,000 steps take about 25 minutes plus validation :: tax3d train --preset cpu --model.variant cd --data.train data/hangbag/train --data.task hangbag --train.steps 100 --train.device cpu --out /tmp/bag-cpu-probe" \
   --train-command "SD, SP, CD-W, CP-W, CD-NAC, CP-NAC, the same GPU, the six side by side, stopped by the 4.5-minute limit at steps 1,454-1,490 of 3,000 (the cosine learning rate not annealed): about a third of TAX3D-CD's and CP's steps, so read these rows as a smaller budget :: tax3d train --preset cpu --model.variant VARIANT --data.train data/hangbag/train --data.val data/hangbag/unseen --data.task hangbag --train.steps 3000 --train.num-workers 2 --train.device cuda --train.time-limit 4.5 --out runs/bag-VARIANT" \
+  --train-command "DP3, its \`cpu\` preset (3,000 steps at batch 32; the final EMA weights in last/, no validation), on this CPU, from the same 16 training episodes regenerated with their per-step trajectories (same seeds, the same demos) :: tax3d generate --task hangbag --split train --trajectories --out data/hangbag-traj/train --workers 2 && tax3d train-dp3 --preset cpu --data data/hangbag-traj/train --task hangbag --out runs/bag-dp3" \
   --train-command "demonstrations, S = train, unseen, ood; the expert succeeded on 16/16, 40/40 and 40/47 episodes, failed indices resampled :: tax3d generate --task hangbag --split S --out data/hangbag/S --workers 2" \
   --note "$NOTE1" --note "$NOTE2" ${NOTE3:+--note "$NOTE3"} \
   "$@"
