@@ -39,6 +39,8 @@ class Args:
     """worker processes for generation and evaluation"""
     data: Path | None = None
     """existing demonstrations with one folder per split (default: OUT/data, generated here)"""
+    device: str = "auto"
+    """where training and evaluation's predictions run: auto (CUDA when there is one), cpu, cuda or cuda:K"""
 
 
 def _generate_data(args: Args) -> Path:
@@ -77,7 +79,7 @@ def _train(args: Args, variant: str, data: Path) -> Path:
             model=cfg.ModelOverrides(**_only(cfg.ModelOverrides, variant=variant)),
             data=cfg.DataOverrides(**_only(cfg.DataOverrides, train=(str(data / "train"),),
                                            val=(str(val),) if val else None, task=args.task)),
-            train=cfg.TrainOverrides(**_only(cfg.TrainOverrides, steps=args.steps,
+            train=cfg.TrainOverrides(**_only(cfg.TrainOverrides, steps=args.steps, device=args.device,
                                              time_limit=args.minutes if args.minutes > 0 else None)),
         ))  # fmt: skip
         done.write_text("finished\n")
@@ -91,11 +93,13 @@ def _only(cls, **values) -> dict:
 
 def run(args: Args) -> int:
     from tax3d.data.dataset import variant_spec
+    from tax3d.devices import pick_device
     from tax3d.evaluate import Args as EvalArgs
     from tax3d.evaluate import evaluate, format_table
     from tax3d.sim.tasks import get_task
 
     get_task(args.task)
+    pick_device(args.device)  # a bad --device fails before any demonstration is generated
     variants = [variant_spec(v.strip()).name for v in args.variants.split(",") if v.strip()]
     if not variants:
         raise UsageError("--variants: expected at least one variant")
@@ -108,7 +112,7 @@ def run(args: Args) -> int:
             print(f"[benchmark] evaluating {variant} ({checkpoint})", flush=True)
             evaluate(EvalArgs(checkpoint=checkpoint, task=args.task, splits=",".join(SPLITS), data=data,
                               episodes=args.episodes, samples=args.samples, workers=args.workers,
-                              out=args.out / variant / "eval"))
+                              device=args.device, out=args.out / variant / "eval"))
         tables[variant] = json.loads(result_file.read_text())["summary"]["splits"]
     lines = [f"# {args.task}: {', '.join(variants)}", ""]
     for variant, table in tables.items():

@@ -114,7 +114,7 @@ def run_eval_job(job: EvalJob) -> dict:
     from tax3d.sim.tasks import get_task
 
     task = get_task(job.task)
-    predictor = _predictor(job.checkpoint, getattr(job, "device", "cpu"))
+    predictor = _predictor(job.checkpoint, job.device)
     if predictor.config.model.variant == "dp3":  # a policy of its own: no goal, so no RMSE
         from tax3d.baselines.dp3 import DP3Policy
 
