@@ -29,7 +29,7 @@ from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
 from tax3d.baselines.dp3.model import DP3
 from tax3d.devices import pick_device
 from tax3d.errors import UsageError
-from tax3d.train import STATE_NAME, find_last, save_checkpoint, truncate_log
+from tax3d.train import STATE_NAME, find_last, get_lr, save_checkpoint, truncate_log
 
 ADAM_BETAS = (0.95, 0.999)  # DP3's optimiser settings (docs/dp3.md)
 EMA_POWER, EMA_MAX = 0.75, 0.9999  # DP3's EMA: decay 1 - (1 + step)^-0.75, capped
@@ -57,14 +57,6 @@ class Args:
     """auto (cuda when available), cpu or cuda"""
     task: str | None = None
     """the task the demos come from, recorded for `tax3d eval` to check"""
-
-
-def get_lr(step: int, c: cfg.TrainConfig) -> float:
-    """Linear warm-up, then cosine decay to 0 at the last step (DP3's schedule)."""
-    if step < c.warmup_steps:
-        return c.lr * (step + 1) / c.warmup_steps
-    progress = (step - c.warmup_steps) / max(1, c.steps - c.warmup_steps)
-    return c.lr * 0.5 * (1.0 + math.cos(math.pi * min(progress, 1.0)))
 
 
 def ema_decay(step: int) -> float:
