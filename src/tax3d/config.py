@@ -141,20 +141,34 @@ def from_dict(data: dict, where: str = "config") -> Config:
     """A Config from its JSON dict; unknown sections or fields are an error naming them."""
     if not isinstance(data, dict):
         raise UsageError(f"{where}: expected a JSON object with sections {', '.join(_SECTIONS)}")
-    unknown = set(data) - set(_SECTIONS)
+    return validate(Config(**parse_sections(data, _SECTIONS, where)), where)
+
+
+def parse_sections(data: dict, sections: dict, where: str, ignore=()) -> dict:
+    """{name: section dataclass} from a config's JSON dict; unknown sections or fields are an error naming them.
+    Lists become tuples; the keys in `ignore` (such as a "kind" tag) are skipped."""
+    unknown = set(data) - set(sections) - set(ignore)
     if unknown:
-        raise UsageError(f"{where}: unknown sections {sorted(unknown)}; expected {', '.join(_SECTIONS)}")
-    sections = {}
-    for name, cls in _SECTIONS.items():
+        raise UsageError(f"{where}: unknown sections {sorted(unknown)}; expected {', '.join(sections)}")
+    out = {}
+    for name, cls in sections.items():
         values = dict(data.get(name, {}))
         names = {f.name for f in dataclasses.fields(cls)}
         if set(values) - names:
             raise UsageError(f"{where}: unknown fields {sorted(set(values) - names)} in section '{name}'")
-        for key, value in values.items():
-            if isinstance(value, list):
-                values[key] = tuple(value)
-        sections[name] = cls(**values)
-    return validate(Config(**sections), where)
+        out[name] = cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+    return out
+
+
+def read_json(path) -> dict:
+    """A config file's JSON, with a one-line error naming the file when it cannot be read."""
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise UsageError(f"{path}: unreadable config ({err})") from None
 
 
 def save(config: Config, path) -> None:
@@ -164,14 +178,7 @@ def save(config: Config, path) -> None:
 
 
 def load(path) -> Config:
-    from pathlib import Path
-
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise UsageError(f"{path}: unreadable config ({err})") from None
-    return from_dict(data, str(path))
+    return from_dict(read_json(path), str(path))
 
 
 def validate(config: Config, where: str = "config") -> Config:

@@ -10,6 +10,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tax3d.config import parse_sections, read_json
 from tax3d.errors import UsageError
 
 KIND = "dp3"
@@ -129,16 +130,7 @@ def to_dict(config: DP3Config) -> dict:
 def from_dict(data: dict, where: str = "config") -> DP3Config:
     if not isinstance(data, dict) or data.get("kind") != KIND:
         raise UsageError(f"{where}: not a DP3 configuration; expected a JSON object with \"kind\": \"{KIND}\"")
-    unknown = set(data) - set(_SECTIONS) - {"kind"}
-    if unknown:
-        raise UsageError(f"{where}: unknown sections {sorted(unknown)}; expected {', '.join(_SECTIONS)}")
-    sections = {}
-    for name, cls in _SECTIONS.items():
-        values = dict(data.get(name, {}))
-        extra = set(values) - {f.name for f in dataclasses.fields(cls)}
-        if extra:
-            raise UsageError(f"{where}: unknown fields {sorted(extra)} in section '{name}'")
-        sections[name] = cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+    sections = parse_sections(data, _SECTIONS, where, ignore=("kind",))
     return validate(DP3Config(**sections), where)
 
 
@@ -147,12 +139,7 @@ def dumps(config: DP3Config) -> str:
 
 
 def load(path) -> DP3Config:
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise UsageError(f"{path}: unreadable config ({err})") from None
-    return from_dict(data, str(path))
+    return from_dict(read_json(path), str(path))
 
 
 def is_dp3_checkpoint(directory) -> bool:
