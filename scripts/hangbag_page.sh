@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
-# Regenerates docs/results/hangbag.md and hangbag.png from the evaluations under runs/ and the fixed-goal JSON
-# files in docs/results/ (commands for each are on the page). Rows whose evaluation folder is absent are left out.
+# Regenerates docs/results/hangbag.md and hangbag.png from the evaluation summaries kept in docs/results/evals/
+# (`scripts/keep_summary.py`) and the fixed-goal JSON files in docs/results/ (commands for each are on the page).
+# Rows whose summary is absent are left out.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-ARGS=(--task hangbag --eval CD=runs/eval-bag-cd CP=runs/eval-bag-cp)
+E=docs/results/evals
+ARGS=(--task hangbag --eval CD=$E/hangbag-cd.json CP=$E/hangbag-cp.json)
 for v in cd_w:CD-W cp_w:CP-W cd_nac:CD-NAC cp_nac:CP-NAC sd:SD sp:SP dp3:DP3; do
-  d=runs/eval-bag-${v%%:*}; [ -f $d/results.json ] && ARGS+=("${v##*:}=$d")
+  f=$E/hangbag-${v%%:*}.json; [ -f $f ] && ARGS+=("${v##*:}=$f")
 done
-[ -f runs/eval-bag-cd-reference-offset/results.json ] && ARGS+=("TAX3D-CD with REFERENCE.md's offset=runs/eval-bag-cd-reference-offset")
+[ -f $E/hangbag-cd-reference-offset.json ] && ARGS+=("TAX3D-CD with REFERENCE.md's offset=$E/hangbag-cd-reference-offset.json")
 B=()
 [ -f docs/results/hangbag_oracle.json ] && B+=("each demo's own goal (the policy's ceiling)=docs/results/hangbag_oracle.json")
 [ -f docs/results/hangbag_oracle_reference_offset.json ] && B+=("each demo's own goal, REFERENCE.md's offset (0, -0.5, 1.0)=docs/results/hangbag_oracle_reference_offset.json")

@@ -25,16 +25,49 @@ class TaskPage:
     policy: str
     out: Path
     remarks: str = ""
+    paper_episodes: str = "16 / 40 / 40"
+    # variant: ((coverage RMSE train, unseen, ood), (precision RMSE train, unseen, ood)); multimodal only
+    paper_sets: dict | None = None
+    script: str = "python scripts/task_report.py"
+
+
+# Appendix D, every table: RMSE (train, unseen, ood), success (train, unseen, ood).
+ABLATIONS_SIMPLE = {
+    "SD": ((0.054, 0.741, 2.898), (0.94, 0.98, 0.00)), "SP": ((0.051, 0.172, 2.969), (0.50, 0.58, 0.05)),
+    "CD-W": ((0.052, 0.224, 3.680), (1.00, 1.00, 0.00)), "CP-W": ((0.044, 0.231, 3.452), (1.00, 1.00, 0.00)),
+    "CD-NAC": ((1.586, 1.498, 1.741), (0.56, 0.60, 0.53)), "CP-NAC": ((3.563, 3.573, 3.534), (0.00, 0.00, 0.00)),
+    "DP3": ((None, None, None), (1.00, 0.93, 0.00))}
+UNIMODAL = {
+    "SD": ((0.127, 0.805, 4.246), (0.27, 0.20, 0.00)), "SP": ((0.095, 0.779, 3.955), (0.45, 0.48, 0.08)),
+    "CD-W": ((0.099, 0.464, 12.464), (0.95, 0.88, 0.00)), "CP-W": ((0.085, 0.511, 19.923), (0.95, 0.85, 0.00)),
+    "CD-NAC": ((2.233, 2.243, 2.326), (0.16, 0.28, 0.10)), "CP-NAC": ((3.987, 3.934, 3.923), (0.02, 0.00, 0.03)),
+    "CD": ((0.052, 0.405, 0.395), (0.94, 0.90, 0.85)), "CP": ((0.051, 0.390, 0.422), (0.93, 0.95, 0.80)),
+    "DP3": ((None, None, None), (0.98, 0.38, 0.03))}
+MULTIMODAL = {
+    "SD": ((1.048, 1.361, 3.832), (0.36, 0.48, 0.05)), "SP": ((1.028, 1.407, 3.825), (0.53, 0.40, 0.05)),
+    "CD-W": ((1.436, 1.535, 5.006), (0.95, 0.63, 0.03)), "CP-W": ((1.418, 1.555, 48.760), (0.97, 0.70, 0.08)),
+    "CD-NAC": ((2.467, 2.560, 2.650), (0.25, 0.10, 0.10)), "CP-NAC": ((4.148, 4.237, 4.114), (0.00, 0.00, 0.00)),
+    "RD": ((2.978, 2.987, 3.057), (0.53, 0.60, 0.50)), "RP": ((1.360, 1.417, 1.432), (0.47, 0.65, 0.48)),
+    "CD": ((1.413, 1.532, 1.610), (0.95, 0.98, 0.73)), "CP": ((1.400, 1.568, 1.608), (0.94, 0.85, 0.70)),
+    "DP3": ((None, None, None), (0.97, 0.45, 0.00))}
+MULTIMODAL_SETS = {
+    "SD": ((0.075, 0.740, 3.500), (1.114, 1.379, 4.214)), "SP": ((0.061, 0.773, 3.462), (1.093, 1.432, 4.062)),
+    "CD-W": ((0.054, 0.426, 4.269), (0.132, 0.477, 4.351)), "CP-W": ((0.047, 0.446, 33.868), (0.099, 0.504, 47.372)),
+    "CD-NAC": ((1.484, 1.741, 1.812), (1.785, 2.011, 2.167)), "CP-NAC": ((3.593, 3.720, 3.603), (3.770, 3.914, 3.786)),
+    "RD": ((2.978, 2.987, 3.057), (1.296, 1.087, 1.114)), "RP": ((1.360, 1.417, 1.432), (1.305, 1.192, 1.154)),
+    "CD": ((0.040, 0.457, 0.543), (0.084, 0.403, 0.558)), "CP": ((0.038, 0.453, 0.540), (0.087, 0.495, 0.631))}
+CLOTH_POLICY = ("the goal-conditioned policy (predicted positions of vertices 0 and 24 as open-loop gripper targets, "
+                "300 steps, release) judged by the success check of appendix A.4.2")
 
 
 TASKS = {
     "hangproccloth-simple": TaskPage(
         title="HangProcCloth-simple: TAX3D trained on our own demonstrations",
         source="appendix D.1",
-        paper={"CD": ((0.270, 0.255, 0.498), (1.00, 1.00, 0.98)), "CP": ((0.298, 0.277, 0.518), (1.00, 1.00, 0.98))},
-        policy="the goal-conditioned policy (predicted positions of vertices 0 and 24 as open-loop gripper targets, "
-               "300 steps, release) judged by the success check of appendix A.4.2",
-        out=RESULTS / "hangproccloth-simple.md",
+        paper={"CD": ((0.270, 0.255, 0.498), (1.00, 1.00, 0.98)), "CP": ((0.298, 0.277, 0.518), (1.00, 1.00, 0.98)),
+               **ABLATIONS_SIMPLE},
+        policy=CLOTH_POLICY,
+        out=RESULTS / "hangproccloth-simple.md", script="python scripts/simple_report.py",
         remarks="A model trained on the authors' demonstrations and executed in this scene (the row so named) is the "
                 "fidelity figure of the scene. The closed-loop row predicts again from the current cloth every 100 "
                 "of the 300 control steps; its RMSE is that of the first prediction. "),
@@ -51,8 +84,24 @@ TASKS = {
         policy="the goal-conditioned policy (predicted positions of the two grip vertices plus {offset} as "
                "open-loop gripper targets, 300 steps, release) judged by the two centroid checks of appendix A.4.2 "
                "(threshold 1.4, before and after release)",
-        out=RESULTS / "hangbag.md"),
+        out=RESULTS / "hangbag.md", script="bash scripts/hangbag_page.sh"),
+    "hangproccloth-unimodal": TaskPage(
+        title="HangProcCloth-unimodal: random one-hole cloths",
+        source="Table 1 and appendix D.2", paper=UNIMODAL, policy=CLOTH_POLICY,
+        out=RESULTS / "hangproccloth-unimodal.md", paper_episodes="64 / 40 / 40",
+        script="bash scripts/cloth_page.sh unimodal"),
+    "hangproccloth-multimodal": TaskPage(
+        title="HangProcCloth-multimodal: random two-hole cloths, one demonstration per hole",
+        source="Table 2 and appendix D.3", paper=MULTIMODAL, paper_sets=MULTIMODAL_SETS, policy=CLOTH_POLICY,
+        out=RESULTS / "hangproccloth-multimodal.md", paper_episodes="64 / 40 / 40",
+        script="bash scripts/cloth_page.sh multimodal"),
 }
+
+
+def load_summary(path: Path) -> dict:
+    """`tax3d eval`'s summary: from EVAL_DIR/results.json, or from a JSON file that keeps it (`{"summary": ...}`)."""
+    file = path / "results.json" if path.is_dir() else path
+    return json.loads(file.read_text())["summary"]
 
 
 def label(name: str) -> str:
@@ -104,15 +153,17 @@ def main(argv: list[str] | None = None) -> None:
         parser.exit(2, f"error: --task {args.task!r}: expected one of {', '.join(TASKS)}\n")
     page = TASKS[args.task]
     out = args.out or page.out
-    script = {"hangproccloth-simple": "python scripts/simple_report.py",
-              "hangbag": "bash scripts/hangbag_page.sh"}.get(args.task, "python scripts/task_report.py")
+    script = page.script
     lines = [f"# {page.title}", "", f"Generated by `{script}` from the `results.json` of each "
              f"evaluation; the paper's figures are from its {page.source}.", ""]
-    rows, notes, timings, offsets, bars = [], [], [], [], []
+    rows, notes, timings, offsets, bars, set_rows = [], [], [], [], [], []
+
+    def set_row(label_text: str, table: dict) -> str:
+        values = [table.get(k, {}).get(m) for m in ("coverage_rmse", "precision_rmse") for k in SPLITS]
+        return f"| {label_text} | " + " | ".join(cell(v, "{:.3f}") for v in values) + " |"
     for pair in args.eval:
         name, folder = pair.split("=", 1)
-        result = json.loads((Path(folder) / "results.json").read_text())
-        s = result["summary"]
+        s = load_summary(Path(folder))
         table = s["splits"]
         rmse = [table.get(k, {}).get("rmse") for k in SPLITS]
         success = [table.get(k, {}).get("success_rate") for k in SPLITS]
@@ -125,7 +176,11 @@ def main(argv: list[str] | None = None) -> None:
             r, p = page.paper[name]
             bars.append((f"{label(name)} (paper)", list(p)))
             rows.append(f"| {label(name)} (paper) | " + " | ".join(cell(v, "{:.3f}") for v in r) + " | "
-                        + " | ".join(f"{v:.2f}" for v in p) + " | 16 / 40 / 40 |")
+                        + " | ".join(f"{v:.2f}" for v in p) + f" | {page.paper_episodes} |")
+        set_rows.append(set_row(f"{label(name)} (ours)", table))
+        if page.paper_sets and name in page.paper_sets:
+            cov, prec = page.paper_sets[name]
+            set_rows.append(f"| {label(name)} (paper) | " + " | ".join(f"{v:.3f}" for v in (*cov, *prec)) + " |")
         for k in SPLITS:
             if k in table and table[k].get("sim_seconds") is not None:
                 timings.append(f"| {label(name)} | {k} | {table[k]['predict_seconds']:.2f} | "
@@ -141,6 +196,8 @@ def main(argv: list[str] | None = None) -> None:
                     + " | ".join(cell(table.get(k, {}).get("success_rate"), "{:.2f}") for k in SPLITS) + " | "
                     + " / ".join(str(table[k]["episodes"]) if k in table else "-" for k in SPLITS) + " |")
         bars.append((name, [table.get(k, {}).get("success_rate") for k in SPLITS]))
+        if not exact:
+            set_rows.append(set_row(name, table))
         notes.append(f"- {name}: `{b['command']}` (gripper-target offset {offset_text(b['offset'])}), {b['machine']}, "
                      f"{b['date']}.")
     known = [o for o in offsets if o is not None]
@@ -151,7 +208,15 @@ def main(argv: list[str] | None = None) -> None:
               "RMSE: world frame, mean over the episodes of each split of the predicted goal against the demonstration's "
               f"goal; success: {policy}.", "",
               page.remarks + "Each checkpoint is the lowest validation RMSE on 10 `unseen` demos, a mild selection bias "
-              "on that split.", "", *[n + "\n" for n in args.note], "Evaluation commands:", *notes, ""]
+              "on that split.", ""]
+    if page.paper_sets:
+        lines += ["## Coverage and precision RMSE", "",
+                  "| | coverage train | coverage unseen | coverage ood | precision train | precision unseen | "
+                  "precision ood |", "| --- | --- | --- | --- | --- | --- | --- |", *set_rows, "",
+                  "Coverage RMSE: for each demonstrated goal of a cloth (one per hole), the lowest RMSE among the goals "
+                  "sampled for that cloth; precision RMSE: for each sampled goal, the lowest RMSE to the cloth's "
+                  "demonstrated goals; both averaged over the cloths of the split (appendix C).", ""]
+    lines += [*[n + "\n" for n in args.note], "Evaluation commands:", *notes, ""]
     if args.train_command:
         lines += ["Training commands:", *[f"- {c.split(' :: ')[0]}: `{c.split(' :: ')[1]}`" if " :: " in c
                                           else f"- `{c}`" for c in args.train_command], ""]

@@ -248,3 +248,22 @@ def test_mean_goal_baseline():
     np.testing.assert_allclose(shifted, 1.0)
     single = MeanGoalBaseline.fit([d])
     np.testing.assert_allclose(single.predict(d["action_pc"], d["anchor_pc"]), d["action_pc"] + d["flow"])
+
+
+def test_mean_goal_baseline_random_cloths():
+    rng = np.random.default_rng(0)
+    grid = np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0), [0.0]), -1).reshape(-1, 3)
+    anchor = rng.normal(size=(30, 3))
+    demos = []
+    for keep in (np.arange(25) != 12, np.arange(25) != 6):  # two cloths, each missing a different vertex
+        start = grid[keep]
+        demos.append({"action_pc": start, "anchor_pc": anchor, "flow": start * 0.5 + 1.0 - start})
+    baseline = MeanGoalBaseline.fit(demos)
+    assert baseline.starts is not None  # the cloths differ: nearest-point matching, not a point-by-point mean
+    both = grid[(np.arange(25) != 12) & (np.arange(25) != 6)]  # a third cloth: its points are in both demos
+    np.testing.assert_allclose(baseline.predict(both + 0.01, anchor + 2.0), both * 0.5 + 3.0)
+    # the vertex missing from the first demo takes there its nearest neighbour's goal (0.5 lower in x or y)
+    lone = baseline.predict(grid[12:13], anchor)
+    assert 0.0 < np.abs(lone - (grid[12] * 0.5 + 1.0)).sum() <= 0.25 + 1e-9
+    with pytest.raises(ValueError):
+        MeanGoalBaseline.fit([])

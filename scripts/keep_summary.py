@@ -1,0 +1,34 @@
+"""Keep the summary of a `tax3d eval` run (its results.json without the per-episode clouds) as a small JSON file, so
+that a results page can be rebuilt from committed files.
+
+    python scripts/keep_summary.py runs/eval-x docs/results/evals/NAME.json
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+from tax3d.atomic import write_text  # noqa: E402
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 2:
+        print("usage: python scripts/keep_summary.py EVAL_DIR OUT_JSON", file=sys.stderr)
+        return 2
+    source = Path(argv[0]) / "results.json"
+    try:
+        summary = json.loads(source.read_text())["summary"]
+    except (OSError, ValueError, KeyError) as err:
+        print(f"error: {source}: not a readable tax3d eval results file ({type(err).__name__}); expected "
+              f"EVAL_DIR/results.json with a summary", file=sys.stderr)
+        return 2
+    write_text(Path(argv[1]), json.dumps({"summary": summary}, indent=1) + "\n")
+    print(argv[1])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
