@@ -1,0 +1,58 @@
+"""scripts/task_report.py and scripts/keep_summary.py: pages from kept evaluation summaries."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "scripts"))
+import task_report  # noqa: E402
+
+
+def summary(success: float, rmse: float, coverage: float, precision: float) -> dict:
+    split = {"episodes": 20, "success_rate": success, "rmse": rmse, "coverage_rmse": coverage,
+             "precision_rmse": precision, "predict_seconds": 0.5, "sim_seconds": 4.0, "failed_runs": 0}
+    return {"summary": {"checkpoint": "runs/x/best", "task": "hangproccloth-multimodal", "command": "tax3d eval ...",
+                        "machine": "test", "date": "2026-01-01", "policy_offset": [0.0, 0.0, 0.0],
+                        "splits": {k: dict(split) for k in ("train", "unseen", "ood")}}}
+
+
+def test_multimodal_page_has_coverage_and_precision(tmp_path):
+    (tmp_path / "cd.json").write_text(json.dumps(summary(0.9, 1.5, 0.4, 0.6)))
+    run = tmp_path / "eval-rd"
+    run.mkdir()
+    (run / "results.json").write_text(json.dumps({**summary(0.5, 3.0, 2.9, 1.1), "episodes": []}))
+    kept = tmp_path / "rd.json"
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "keep_summary.py"), str(run), str(kept)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "episodes" not in json.loads(kept.read_text())
+    out = tmp_path / "page.md"
+    task_report.main(["--task", "hangproccloth-multimodal", "--eval", f"CD={tmp_path / 'cd.json'}", f"RD={kept}",
+                      "--out", str(out)])
+    text = out.read_text()
+    assert "## Coverage and precision RMSE" in text
+    assert "| TAX3D-CD (ours) | 0.400 | 0.400 | 0.400 | 0.600 | 0.600 | 0.600 |" in text
+    assert "| RD (paper) | 2.978 | 2.987 | 3.057 | 1.296 | 1.087 | 1.114 |" in text  # appendix D.3
+    assert "| RD (ours) | 3.000 | 3.000 | 3.000 | 0.50 | 0.50 | 0.50 | 20 / 20 / 20 |" in text
+    assert "| TAX3D-CD (paper) | 1.413 | 1.532 | 1.610 | 0.95 | 0.98 | 0.73 | 64 / 40 / 40 |" in text
+
+
+def test_unimodal_page_has_no_coverage_table(tmp_path):
+    (tmp_path / "cp.json").write_text(json.dumps(summary(0.9, 0.5, 0.3, 0.5)))
+    out = tmp_path / "page.md"
+    task_report.main(["--task", "hangproccloth-unimodal", "--eval", f"CP={tmp_path / 'cp.json'}", "--out", str(out)])
+    text = out.read_text()
+    assert "Coverage and precision" not in text
+    assert "| TAX3D-CP (paper) | 0.051 | 0.390 | 0.422 | 0.93 | 0.95 | 0.80 | 64 / 40 / 40 |" in text
+
+
+def test_keep_summary_bad_input(tmp_path):
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "keep_summary.py"), str(tmp_path / "nope"),
+                           str(tmp_path / "out.json")], capture_output=True, text=True)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "nope/results.json" in done.stderr
+    assert not (tmp_path / "out.json").exists()
