@@ -85,6 +85,15 @@ TASKS = {
                "open-loop gripper targets, 300 steps, release) judged by the two centroid checks of appendix A.4.2 "
                "(threshold 1.4, before and after release)",
         out=RESULTS / "hangbag.md", script="bash scripts/hangbag_page.sh"),
+    "hangproccloth-simple-baselines": TaskPage(
+        title="HangProcCloth-simple: the baselines and ablations of appendix D.1",
+        source="appendix D.1",
+        paper={"CD": ((0.270, 0.255, 0.498), (1.00, 1.00, 0.98)), "CP": ((0.298, 0.277, 0.518), (1.00, 1.00, 0.98)),
+               **ABLATIONS_SIMPLE},
+        policy=CLOTH_POLICY, out=RESULTS / "hangproccloth-simple-baselines.md",
+        remarks="TAX3D-CD and TAX3D-CP on 40 + 40 episodes, the fidelity and closed-loop rows are in "
+                "[hangproccloth-simple.md](hangproccloth-simple.md). ",
+        script="bash scripts/cloth_page.sh simple"),
     "hangproccloth-unimodal": TaskPage(
         title="HangProcCloth-unimodal: random one-hole cloths",
         source="Table 1 and appendix D.2", paper=UNIMODAL, policy=CLOTH_POLICY,
