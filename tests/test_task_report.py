@@ -41,12 +41,14 @@ def test_multimodal_page_has_coverage_and_precision(tmp_path):
     assert "| TAX3D-CD (paper) | 1.413 | 1.532 | 1.610 | 0.95 | 0.98 | 0.73 | 64 / 40 / 40 |" in text
 
 
-def test_unimodal_page_has_no_coverage_table(tmp_path):
+def test_unimodal_page_has_our_coverage_only(tmp_path):
     (tmp_path / "cp.json").write_text(json.dumps(summary(0.9, 0.5, 0.3, 0.5)))
     out = tmp_path / "page.md"
     task_report.main(["--task", "hangproccloth-unimodal", "--eval", f"CP={tmp_path / 'cp.json'}", "--out", str(out)])
     text = out.read_text()
-    assert "Coverage and precision" not in text
+    assert "| TAX3D-CP (ours) | 0.300 | 0.300 | 0.300 | 0.500 | 0.500 | 0.500 |" in text
+    assert "| TAX3D-CP (paper) | 0.051 | 0.390 | 0.422 | 0.93 | 0.95 | 0.80 | 64 / 40 / 40 |" in text
+    assert text.count("(paper) |") == 1  # the paper gives no coverage for this task
     assert "| TAX3D-CP (paper) | 0.051 | 0.390 | 0.422 | 0.93 | 0.95 | 0.80 | 64 / 40 / 40 |" in text
 
 
