@@ -38,6 +38,7 @@ case $TASK in
     --train-command "RD and RP, the same but a 10-minute limit (one regression pass per step) :: tax3d train --preset cpu --model.variant V --data.train data/$TASK/train --data.val data/$TASK/unseen --data.task hangproccloth-$TASK --train.steps 4000 --train.time-limit 10 --out runs/$TASK-V");;
 esac
 [ $TASK = simple ] || TRAIN+=(--train-command "evaluation of each TAX3D variant, the first 20 episodes of each split, 20 goal samples per episode with the 10-step sampler (the policy executes the first sample) :: tax3d eval --checkpoint runs/$TASK-V/best --task hangproccloth-$TASK --data data/$TASK --splits train,unseen,ood --episodes 20 --samples 20 --steps 10 --workers 2 --out runs/eval-$TASK-V && python scripts/keep_summary.py runs/eval-$TASK-V docs/results/evals/$TASK-V.json")
+[ -f $E/$TASK-mode-spread.json ] && EXTRA+=(--mode-spread $E/$TASK-mode-spread.json)
 NOTES=()
 [ -f docs/results/$TASK-notes.md ] && NOTES+=(--note "$(cat docs/results/$TASK-notes.md)")
 python scripts/task_report.py "${ARGS[@]}" ${B:+--baseline "${B[@]}"} --plot "${NOTES[@]}" \

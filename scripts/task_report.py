@@ -155,6 +155,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--baseline", nargs="*", default=[], help="NAME=JSON pairs from scripts/oracle_policy.py: "
                         "fixed-goal rows (the demo's own goal, the mean goal)")
     parser.add_argument("--goal-spread", type=Path, default=None, help="JSON of scripts/goal_spread.py")
+    parser.add_argument("--mode-spread", type=Path, default=None, help="JSON of scripts/mode_spread.py (multimodal)")
     parser.add_argument("--plot", action="store_true", help="also draw the success rates as bars, PAGE.png")
     parser.add_argument("--out", type=Path, default=None, help="default: the task's page in docs/results/")
     args = parser.parse_args(argv)
@@ -241,6 +242,16 @@ def main(argv: list[str] | None = None) -> None:
                       f"{v['rotated_mean_goal_rmse']:.3f}" for v in g["splits"].values()) + " |", "",
                   "Anchor points on the hook (off the pole, near its top): " + ", ".join(
                       f"{k.replace('fps_', 'after FPS to ')}: {v}" for k, v in hook.items()) + ".", ""]
+    if args.mode_spread is not None:
+        m = json.loads(args.mode_spread.read_text())
+        names = list(m["splits"])
+        lines += ["## How far apart the two modes are", "", f"`{m['command']}`, {m['date']} (no simulation: the demos' "
+                  "goals, over the cloths with a demonstration for each hole):", "", "| | " + " | ".join(names) + " |",
+                  "| --- |" + " --- |" * len(names),
+                  "| RMSE between a cloth's two goals | " + " | ".join(
+                      cell(m["splits"][k]["goal_separation_rmse"], "{:.3f}") for k in names) + " |",
+                  "| RMSE of their midpoint to either goal (its coverage and precision RMSE) | " + " | ".join(
+                      cell(m["splits"][k]["midpoint_rmse"], "{:.3f}") for k in names) + " |", ""]
     speed = RESULTS / "eval_benchmark.json"
     if args.task == "hangproccloth-simple" and speed.exists():
         b = json.loads(speed.read_text())

@@ -1,0 +1,55 @@
+"""How far apart the two goals of a multimodal cloth are, and what predicting their average would score; prints JSON.
+
+    python scripts/mode_spread.py --data data/multimodal [--out FILE]
+
+Per split, over the cloths with both demonstrations (one per hole, same anchor pose): the RMSE between the two goals
+(the separation of the modes), and the RMSE of their point-wise midpoint to either goal, which is then that
+prediction's coverage and precision RMSE alike: what a regression that averages the two modes would score.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from tax3d.atomic import write_text
+from tax3d.data.format import list_demos, load_demo
+from tax3d.metrics import rmse
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, required=True, help="folder with train, unseen, ood demo folders")
+    parser.add_argument("--out", type=Path, default=None, help="write the JSON here too")
+    args = parser.parse_args()
+    splits = [s for s in ("train", "unseen", "ood") if (args.data / s).is_dir()]
+    if not splits:
+        print(f"error: --data {args.data}: expected train, unseen or ood folders of demo_N.npz files inside it",
+              file=sys.stderr)
+        return 2
+    out = {"command": "python " + " ".join(sys.argv), "date": datetime.date.today().isoformat(), "splits": {}}
+    for split in splits:
+        cloths: dict[str, list[np.ndarray]] = {}
+        for path in list_demos(args.data / split):
+            d = load_demo(path)
+            key = json.dumps([d["deform_params"], np.round(d["rot"], 9).tolist(), np.round(d["trans"], 9).tolist()])
+            cloths.setdefault(key, []).append(d["action_pc"] + d["flow"])
+        pairs = [g for g in cloths.values() if len(g) == 2]
+        out["splits"][split] = {
+            "cloths_with_both_goals": len(pairs),
+            "goal_separation_rmse": float(np.mean([rmse(a, b) for a, b in pairs])) if pairs else None,
+            "midpoint_rmse": float(np.mean([rmse((a + b) / 2, a) for a, b in pairs])) if pairs else None}
+    text = json.dumps(out, indent=2)
+    if args.out is not None:
+        write_text(args.out, text + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
