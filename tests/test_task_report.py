@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
 import task_report  # noqa: E402
@@ -58,3 +60,25 @@ def test_keep_summary_bad_input(tmp_path):
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "nope/results.json" in done.stderr
     assert not (tmp_path / "out.json").exists()
+
+
+def test_mode_spread(tmp_path):
+    from tax3d.data.format import save_demo
+    from tests.test_model_api import synthetic_demo
+
+    folder = tmp_path / "data" / "unseen"
+    folder.mkdir(parents=True)
+    base = synthetic_demo(0)
+    for i, shift in enumerate((0.0, 2.0)):  # one cloth, one pose, two goals 2.0 apart along x
+        demo = dict(base, flow=base["flow"] + [shift, 0.0, 0.0])
+        save_demo(folder / f"demo_{i}.npz", demo)
+    save_demo(folder / "demo_2.npz", synthetic_demo(1) | {"rot": np.ones(3)})  # a cloth with one goal: skipped
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "mode_spread.py"), "--data", str(tmp_path / "data")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    split = json.loads(done.stdout)["splits"]["unseen"]
+    assert split["cloths_with_both_goals"] == 1
+    assert abs(split["goal_separation_rmse"] - 2.0) < 1e-9 and abs(split["midpoint_rmse"] - 1.0) < 1e-9
+    bad = subprocess.run([sys.executable, str(ROOT / "scripts" / "mode_spread.py"), "--data", str(tmp_path / "no")],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1
