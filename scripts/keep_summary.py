@@ -10,8 +10,7 @@ import json
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
-from tax3d.atomic import write_text  # noqa: E402
+from tax3d.atomic import write_text
 
 
 def main(argv: list[str]) -> int:

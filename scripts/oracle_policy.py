@@ -25,7 +25,7 @@ import numpy as np
 
 from tax3d.atomic import write_text
 from tax3d.errors import UsageError
-from tax3d.evaluate import Args, EvalJob, _cloth_key, plan_jobs, run_jobs, summarise
+from tax3d.evaluate import Args, EvalJob, cloth_key, plan_jobs, run_jobs, summarise
 from tax3d.metrics import MeanGoalBaseline
 
 
@@ -58,7 +58,7 @@ def fixed_goal_episode(job: EvalJob, offset: tuple, mean: MeanGoalBaseline | Non
     error = None if pred is None else float(rmse(pred[0], job.true_goal))
     return {"split": job.split, "name": job.name, "success": bool(ep.success), "exploded": bool(ep.exploded),
             "seconds": ep.seconds, "rmse": error, "pred_goal": pred, "true_goal": job.true_goal,
-            "cloth_key": _cloth_key(job), "predict_seconds": 0.0, "sim_seconds": ep.seconds}
+            "cloth_key": cloth_key(job), "predict_seconds": 0.0, "sim_seconds": ep.seconds}
 
 
 def main() -> int:

@@ -132,11 +132,12 @@ def run_eval_job(job: EvalJob) -> dict:
         "predict_seconds": policy.predict_seconds, "sim_seconds": ep.seconds - policy.predict_seconds,
         "checks": ep.checks, "action_pc": ep.action_pc, "anchor_pc": ep.anchor_pc, "pred_goal": pred,
         "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": list(ep.grip_vertices),
-        "denoising": policy.denoising, "cloth_key": _cloth_key(job),
+        "denoising": policy.denoising, "cloth_key": cloth_key(job),
     }
 
 
-def _cloth_key(job: EvalJob) -> str:
+def cloth_key(job: EvalJob) -> str:
+    """Episodes with the same cloth and anchor pose share a key: their goals are one cloth's modes (appendix C)."""
     return json.dumps([job.split, job.cloth_params, round(job.rot_z, 9), [round(t, 9) for t in job.trans]])
 
 
@@ -206,7 +207,7 @@ def _failed(job: EvalJob, why: str) -> dict:
     return {"split": job.split, "name": job.name, "success": False, "exploded": False, "error": why, "rmse": None,
             "min_rmse": None, "predict_seconds": 0.0, "sim_seconds": 0.0, "checks": {}, "action_pc": None,
             "anchor_pc": None, "pred_goal": None, "true_goal": job.true_goal, "released_pc": None,
-            "grip_vertices": [], "denoising": None, "cloth_key": _cloth_key(job)}
+            "grip_vertices": [], "denoising": None, "cloth_key": cloth_key(job)}
 
 
 def summarise(results: list[dict], splits: list[str]) -> dict:
