@@ -143,6 +143,24 @@ def plot_success(bars: list, path: Path) -> str:
     return path.name
 
 
+def curve_section(pairs: list[str]) -> list[str]:
+    """A table of validation RMSE (best of the samples) per step, one column per NAME=JSON curve."""
+    names, curves = [], []
+    for pair in pairs:
+        name, path = pair.split("=", 1)
+        names.append(name)
+        curves.append(json.loads(Path(path).read_text()))
+    by_step = [{p["step"]: p["val_rmse"] for p in c["points"]} for c in curves]
+    steps = sorted(set().union(*by_step))
+    first = curves[0]
+    lines = ["## Validation RMSE over training", "",
+             f"The best of {first['val_samples']} goal samples per demo, averaged over the first {first['val_demos']} "
+             f"demos of `{', '.join(first['val'])}`, as logged by `tax3d train` (kept by `scripts/val_curve.py`):", "",
+             "| step | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
+    lines += [f"| {s:,} | " + " | ".join(cell(b.get(s), "{:.3f}") for b in by_step) + " |" for s in steps]
+    return lines + [""]
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--eval", nargs="+", required=True, help="NAME=EVAL_DIR pairs")
@@ -153,6 +171,8 @@ def main(argv: list[str] | None = None) -> None:
                         "fixed-goal rows (the demo's own goal, the mean goal)")
     parser.add_argument("--goal-spread", type=Path, default=None, help="JSON of scripts/goal_spread.py")
     parser.add_argument("--mode-spread", type=Path, default=None, help="JSON of scripts/mode_spread.py (multimodal)")
+    parser.add_argument("--curve", nargs="*", default=[], help="NAME=JSON pairs from scripts/val_curve.py: validation "
+                        "RMSE over the steps of training runs")
     parser.add_argument("--plot", action="store_true", help="also draw the success rates as bars, PAGE.png")
     parser.add_argument("--out", type=Path, default=None, help="default: the task's page in docs/results/")
     args = parser.parse_args(argv)
@@ -249,6 +269,8 @@ def main(argv: list[str] | None = None) -> None:
                       cell(m["splits"][k]["goal_separation_rmse"], "{:.3f}") for k in names) + " |",
                   "| RMSE of their midpoint to either goal (its coverage and precision RMSE) | " + " | ".join(
                       cell(m["splits"][k]["midpoint_rmse"], "{:.3f}") for k in names) + " |", ""]
+    if args.curve:
+        lines += curve_section(args.curve)
     speed = RESULTS / "eval_benchmark.json"
     if args.task == "hangproccloth-simple" and speed.exists():
         b = json.loads(speed.read_text())

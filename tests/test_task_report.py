@@ -82,3 +82,32 @@ def test_mode_spread(tmp_path):
     bad = subprocess.run([sys.executable, str(ROOT / "scripts" / "mode_spread.py"), "--data", str(tmp_path / "no")],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1
+
+
+def test_val_curve_kept_and_shown(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    config = {"model": {"variant": "cp"}, "data": {"val": ["data/u/unseen"]},
+              "train": {"val_demos": 10, "val_samples": 2, "steps": 1000}}
+    (run / "config.json").write_text(json.dumps(config))
+    log = [{"step": 20, "loss": 1.0, "seconds": 6.0}, {"step": 500, "loss": 0.5, "val_rmse": 2.5, "val_rmse_mean": 2.7,
+                                                       "seconds": 300.0},
+           {"step": 1000, "loss": 0.4, "val_rmse": 1.25, "val_rmse_mean": 1.5, "seconds": 600.0}]
+    (run / "log.jsonl").write_text("".join(json.dumps(d) + "\n" for d in log))
+    kept = tmp_path / "curve.json"
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "val_curve.py"), str(run), str(kept)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    curve = json.loads(kept.read_text())
+    assert [p["step"] for p in curve["points"]] == [500, 1000] and curve["points"][1]["minutes"] == 10.0
+    (tmp_path / "cp.json").write_text(json.dumps(summary(0.9, 0.5, 0.3, 0.5)))
+    out = tmp_path / "page.md"
+    task_report.main(["--task", "hangproccloth-unimodal", "--eval", f"CP={tmp_path / 'cp.json'}",
+                      "--curve", f"CP long={kept}", "--out", str(out)])
+    text = out.read_text()
+    assert "| step | CP long |" in text and "| 1,000 | 1.250 |" in text and "first 10 demos of `data/u/unseen`" in text
+    (run / "log.jsonl").write_text(json.dumps(log[0]) + "\n")
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "val_curve.py"), str(run), str(tmp_path / "c2.json")],
+                          capture_output=True, text=True)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "no validated step" in done.stderr
+    assert not (tmp_path / "c2.json").exists()
