@@ -13,7 +13,7 @@ done
 [ ${#ARGS[@]} -gt 0 ] || { echo "error: $E/simple-full-*.json: none found; expected the kept summaries (commands on the page)" >&2; exit 2; }
 D=data/hangproccloth-simple
 python scripts/simple_report.py --eval "${ARGS[@]}" \
-  --train-command "demonstrations, S = train, unseen, ood (16 / 40 / 40, the paper's sizes) :: tax3d generate --task hangproccloth-simple --split S --out $D/S --workers 2" \
+  --train-command "demonstrations, S = train, unseen, ood (16 / 40 / 40, the paper's sizes; the train folder evaluated here is data/simple/train, the same 16 seeds generated with --trajectories) :: tax3d generate --task hangproccloth-simple --split S --out $D/S --workers 2" \
   --train-command "TAX3D-CD, stopped by the 45-minute limit at step 1,642 of 6,000 with the CPU shared with other jobs; checkpoints/tax3d-cd-simple is its best/, step 1,642 :: tax3d train --preset cpu --model.variant cd --data.train $D/train --data.val $D/unseen --data.task hangproccloth-simple --train.steps 6000 --train.time-limit 45 --out runs/simple-cd" \
   --train-command "TAX3D-CP, 4,000 steps in 37 minutes; checkpoints/tax3d-cp-simple is its best/, step 3,000 :: tax3d train --preset cpu --model.variant cp --data.train $D/train --data.val $D/unseen --data.task hangproccloth-simple --train.steps 4000 --train.time-limit 45 --out runs/simple-cp" \
   --train-command "TAX3D-CD trained on the official demos: see official-simple.md (checkpoints/tax3d-cd-official-simple)" \

@@ -66,7 +66,7 @@ TASKS = {
         title="HangProcCloth-simple: TAX3D trained on our own demonstrations",
         source="appendix D.1",
         paper=SIMPLE, policy=CLOTH_POLICY,
-        out=RESULTS / "hangproccloth-simple.md", script="python scripts/simple_report.py",
+        out=RESULTS / "hangproccloth-simple.md", script="bash scripts/simple_page.sh",
         remarks="A model trained on the authors' demonstrations and executed in this scene (the row so named) is the "
                 "fidelity figure of the scene. The closed-loop row predicts again from the current cloth every 100 "
                 "of the 300 control steps; its RMSE is that of the first prediction. "),
