@@ -4,22 +4,26 @@
 
 The npz holds `goals` (D, K, N, 3) world-frame predictions (an object array of (K, N_i, 3) when the demos' point
 counts differ), `files` (D,) and, with ground truth, `rmse` (D, K). The printed RMSE is the mean over demos of the
-min over samples (REFERENCE.md, Evaluation), and the mean over all samples.
+min over samples (REFERENCE.md, Evaluation), and the mean over all samples; `--summary FILE` keeps it as JSON with
+the command, machine and date.
 """
 
 from __future__ import annotations
 
+import datetime
 import json
+import os
+import platform
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
 from typing import Literal, Optional
 
 import numpy as np
 import torch
 
-from tax3d.atomic import atomic_write
+from tax3d.atomic import atomic_write, write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
@@ -49,6 +53,8 @@ class Args:
     """if given, the checkpoint must be of this variant"""
     baseline: tuple[str, ...] = ()
     """demo folders to fit the mean-goal baseline on (e.g. the training split); its RMSE is printed too"""
+    summary: Optional[str] = None
+    """JSON file for the printed summary, with the command, machine and date beside it (written atomically)"""
     threads: int = 0
     """torch CPU threads (0: torch's default)"""
     batch_scenes: int = 8
@@ -60,6 +66,9 @@ class Args:
 def run(args: Args) -> int:
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected a positive number")
+    for option, value in (("--out", args.out), ("--summary", args.summary)):
+        if value and not Path(value).parent.is_dir():
+            raise UsageError(f"{option} {value}: its folder does not exist")
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     device = pick_device(args.device)
@@ -83,8 +92,26 @@ def run(args: Args) -> int:
             [rmse(baseline.predict(d["action_pc"], d["anchor_pc"]), d["action_pc"] + d["flow"]) for d in demos]))
     if args.out:
         write_npz(Path(args.out), goals, files, errors)
+    if args.summary:
+        kept = {"command": command_line(args),
+                "date": datetime.date.today().isoformat(),
+                "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+                "checkpoint": str(args.checkpoint), **summary}
+        write_text(args.summary, json.dumps(kept, indent=1) + "\n")
     print(json.dumps(summary))
     return 0
+
+
+def command_line(args: Args) -> str:
+    """The `tax3d predict` command that reproduces args: the checkpoint, the demos and every option set off its default."""
+    words = ["tax3d predict"]
+    for field in fields(Args):
+        value = getattr(args, field.name)
+        if field.default is not MISSING and value == field.default:
+            continue
+        values = value if isinstance(value, tuple) else (value,)
+        words.append(" ".join([f"--{field.name.replace('_', '-')}", *map(str, values)]))
+    return " ".join(words)
 
 
 def write_npz(path: Path, goals: list[np.ndarray], files: list[Path], errors: np.ndarray) -> None:
