@@ -190,10 +190,10 @@ def checkpoint(tmp_path):
 def test_predict_command(tmp_path, capsys, checkpoint):
     ckpt, demos = checkpoint
     code = main(["predict", "--checkpoint", str(ckpt), "--demos", str(demos), "--samples", "3", "--steps", "4",
-                 "--out", str(tmp_path / "p.npz"), "--baseline", str(demos), "--summary", str(tmp_path / "s.json")])
+                 "--out", str(tmp_path / "p.npz"), "--baseline", str(demos), "--summary", str(tmp_path / "new" / "s.json")])
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and summary["demos"] == 3 and summary["rmse_min_of_samples"] <= summary["rmse_mean"]
-    kept = json.loads((tmp_path / "s.json").read_text())
+    kept = json.loads((tmp_path / "new" / "s.json").read_text())
     assert kept["command"].startswith("tax3d predict --checkpoint") and "--summary" in kept["command"]
     assert kept["date"] and "cores" in kept["machine"] and kept["checkpoint"] == str(ckpt)
     assert {k: kept[k] for k in summary} == summary and "rmse_mean_goal_baseline" in kept
@@ -220,14 +220,14 @@ def test_predict_command_bad_input(tmp_path, capsys, checkpoint):
         (["--checkpoint", str(ckpt), "--demos", str(tmp_path / "empty")], "no demo_N.npz files"),
         (["--checkpoint", str(ckpt), "--demos", str(bad)], "missing keys"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--steps", "101"], "--steps 101"),
-        (["--checkpoint", str(ckpt), "--demos", str(demos), "--summary", str(tmp_path / "no" / "s.json")],
-         "--summary"),
+        (["--checkpoint", str(ckpt), "--demos", str(demos), "--summary", str(demos)], "--summary"),
+        (["--checkpoint", str(ckpt), "--demos", str(demos), "--out", str(demos / "demo_0.npz" / "p.npz")], "--out"),
     ]
     for argv, message in cases:
         code, err = run_cli(capsys, "predict", *argv)
         assert code == 2, argv
         assert message in err and len(err.splitlines()) == 1, err
-    assert not (tmp_path / "no").exists()
+    assert sorted(p.name for p in demos.iterdir()) == [f"demo_{i}.npz" for i in range(3)]
 
 
 def test_metrics():

@@ -67,8 +67,8 @@ def run(args: Args) -> int:
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected a positive number")
     for option, value in (("--out", args.out), ("--summary", args.summary)):
-        if value and not Path(value).parent.is_dir():
-            raise UsageError(f"{option} {value}: its folder does not exist")
+        if value and (Path(value).is_dir() or any(p.exists() and not p.is_dir() for p in Path(value).parents)):
+            raise UsageError(f"{option} {value}: expected a file path whose folders are folders")
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     device = pick_device(args.device)
@@ -97,6 +97,7 @@ def run(args: Args) -> int:
                 "date": datetime.date.today().isoformat(),
                 "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
                 "checkpoint": str(args.checkpoint), **summary}
+        Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
         write_text(args.summary, json.dumps(kept, indent=1) + "\n")
     print(json.dumps(summary))
     return 0
