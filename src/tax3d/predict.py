@@ -67,8 +67,10 @@ def run(args: Args) -> int:
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected a positive number")
     for option, value in (("--out", args.out), ("--summary", args.summary)):
-        if value and (Path(value).is_dir() or any(p.exists() and not p.is_dir() for p in Path(value).parents)):
-            raise UsageError(f"{option} {value}: expected a file path whose folders are folders")
+        if value and Path(value).is_dir():
+            raise UsageError(f"{option} {value}: is a folder; expected a file path")
+        if value and any(p.exists() and not p.is_dir() for p in Path(value).parents):
+            raise UsageError(f"{option} {value}: part of its folder path is a file; expected folders")
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     device = pick_device(args.device)
