@@ -190,7 +190,8 @@ def checkpoint(tmp_path):
 def test_predict_command(tmp_path, capsys, checkpoint):
     ckpt, demos = checkpoint
     code = main(["predict", "--checkpoint", str(ckpt), "--demos", str(demos), "--samples", "3", "--steps", "4",
-                 "--out", str(tmp_path / "p.npz"), "--baseline", str(demos), "--summary", str(tmp_path / "new" / "s.json")])
+                 "--out", str(tmp_path / "p.npz"), "--baseline", str(demos),
+                 "--summary", str(tmp_path / "new" / "s.json")])
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and summary["demos"] == 3 and summary["rmse_min_of_samples"] <= summary["rmse_mean"]
     kept = json.loads((tmp_path / "new" / "s.json").read_text())

@@ -106,7 +106,7 @@ def run(args: Args) -> int:
 
 
 def command_line(args: Args) -> str:
-    """The `tax3d predict` command that reproduces args: the checkpoint, the demos and every option set off its default."""
+    """The `tax3d predict` command that reproduces args: checkpoint, demos and every option off its default."""
     words = ["tax3d predict"]
     for field in fields(Args):
         value = getattr(args, field.name)
