@@ -35,7 +35,8 @@ class FixedGoal:
     def __init__(self, goal: np.ndarray | None = None, mean: MeanGoalBaseline | None = None):
         self.goal, self.mean = goal, mean
 
-    def predict(self, action_points, anchor_points, num_samples=1, steps=None, seed=None, return_trajectory=False):
+    def predict(self, action_points, anchor_points, num_samples=1, steps=None, sampler=None, seed=None,
+                return_trajectory=False):
         goal = self.mean.predict(action_points, anchor_points) if self.mean is not None else self.goal
         if len(action_points) != len(goal):
             raise ValueError(f"{len(action_points)} action points, but the goal has {len(goal)}")

@@ -120,7 +120,7 @@ def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
     assert default[0].offset is None and chosen[0].offset == (0.0, 0.0, 0.5)
 
     class Fixed:
-        def predict(self, cloth, anchor, num_samples=1, steps=None, seed=None):
+        def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=None):
             return np.asarray(cloth, dtype=float)[None] + 1.0
 
     class Env:
@@ -132,3 +132,29 @@ def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
     state = type("State", (), {"cloth": np.arange(9.0).reshape(3, 3)})()
     policy = GoalPolicy(Fixed(), offset=(0.0, -0.5, 1.0))(Env(), state)
     assert np.allclose(policy.targets(state.cloth), state.cloth[[0, 2]] + 1.0 + [0.0, -0.5, 1.0])
+
+
+def test_sampler_reaches_the_jobs_and_the_model(checkpoint):
+    from tax3d.evaluate import load_model, plan_jobs
+    from tax3d.policy import GoalPolicy
+
+    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].sampler is None
+    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, sampler="ddim"))[0].sampler == "ddim"
+    model = load_model(checkpoint)
+    rng = np.random.default_rng(0)
+    cloth, anchor = rng.normal(size=(40, 3)), rng.normal(size=(30, 3))
+
+    class Env:
+        mesh = type("Mesh", (), {"grip_vertices": staticmethod(lambda: (0, 2))})()
+
+        def anchor_points(self):
+            return anchor
+
+    state = type("State", (), {"cloth": cloth})()
+    goals = {}
+    for sampler in ("ddpm", "ddim"):
+        policy = GoalPolicy(model, num_samples=2, steps=3, seed=5, sampler=sampler)(Env(), state)
+        expected = model.predict(cloth, anchor, num_samples=2, steps=3, sampler=sampler, seed=5)
+        assert np.allclose(policy.first_prediction, expected)
+        goals[sampler] = policy.first_prediction
+    assert not np.allclose(goals["ddpm"], goals["ddim"])

@@ -42,6 +42,8 @@ class Args:
     """goal samples per episode (the policy executes the first); RMSE is their mean, coverage their min"""
     steps: int | None = None
     """denoising steps (default: the checkpoint's)"""
+    sampler: Literal["ddpm", "ddim"] | None = None
+    """ddpm or ddim (default: the checkpoint's diffusion.sampler)"""
     replan_every: int = 0
     """closed loop: predict again every K environment steps (0: open loop, the paper's policy)"""
     workers: int = 2
@@ -75,6 +77,7 @@ class EvalJob:
     true_goal: np.ndarray | None = None
     samples: int = 1
     steps: int | None = None
+    sampler: str | None = None
     replan_every: int = 0
     seed: int = 0
     denoising: bool = False
@@ -121,7 +124,7 @@ def run_eval_job(job: EvalJob) -> dict:
         policy = DP3Policy(predictor, job.seed)
     else:
         policy = GoalPolicy(predictor, job.samples, job.steps, job.seed, job.replan_every, trajectory=job.denoising,
-                            offset=task.policy_offset if job.offset is None else job.offset)
+                            offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler)
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
@@ -164,7 +167,7 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         split = get_split(split_name)
         folder = _split_folder(args.data, split.name)
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
-                      replan_every=args.replan_every, task=task.name, device=args.device,
+                      sampler=args.sampler, replan_every=args.replan_every, task=task.name, device=args.device,
                       offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset))
         if folder is not None:
             paths = list_demos(folder)[: args.episodes]
