@@ -24,10 +24,8 @@ done
 for v in sd:SD sp:SP; do  # the scene-level variants again, with the 10-step DDIM sampler
   f=$E/$TASK-${v%%:*}-ddim.json; [ -f $f ] && ARGS+=("${v##*:}, 10-step DDIM sampler=$f")
 done
-for v in cd:CD cp:CP; do  # TAX3D from scratch at the multimodal ablations' 6,000 steps, on 40 episodes per split
+for v in cd:CD cp:CP; do  # TAX3D at the ablations' budget, for a like-for-like comparison
   f=$E/$TASK-${v%%:*}-6k.json; [ -f $f ] && ARGS+=("TAX3D-${v##*:} at the ablations' 6,000 steps=$f")
-done
-for v in cd:CD cp:CP; do  # TAX3D at the ablations' short budget, for a like-for-like comparison
   f=$E/$TASK-short-${v%%:*}.json; [ -f $f ] && ARGS+=("TAX3D-${v##*:} at the ablations' 900 steps=$f")
 done
 B=()

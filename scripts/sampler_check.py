@@ -23,7 +23,7 @@ from tax3d.atomic import write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
-from tax3d.metrics import rmse
+from tax3d.metrics import min_of_samples_rmse
 from tax3d.model.tax3d import Tax3D
 
 SETTINGS = ((10, "ddpm"), (10, "ddim"), (100, "ddpm"))
@@ -35,7 +35,7 @@ def check(checkpoint: str, demos: list[dict], samples: int, seed: int) -> dict:
     row = {"checkpoint": checkpoint, "variant": model.config.model.variant}
     for steps, sampler in SETTINGS:
         goals = model.predict_scenes(scenes, num_samples=samples, steps=steps, sampler=sampler, seed=seed)
-        errors = [rmse(g, d["action_pc"] + d["flow"]).min() for g, d in zip(goals, demos)]
+        errors = [min_of_samples_rmse(g, d["action_pc"] + d["flow"]) for g, d in zip(goals, demos)]
         row[f"{sampler}_{steps}"] = float(np.mean(errors))
     return row
 
