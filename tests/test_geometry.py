@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from tax3d.geometry import apply_pose, centre, farthest_point_sample, rotate_z, rotation_z
+from tax3d.geometry import (apply_pose, centre, farthest_point_sample, fps_loop_numpy, fps_loop_torch, rotate_z,
+                            rotation_z)
 
 
 def clusters(num_clusters=5, per_cluster=20, seed=0):
@@ -34,6 +35,25 @@ def test_fps_start_and_generator():
     a = farthest_point_sample(points, 10, start=torch.Generator().manual_seed(5))
     b = farthest_point_sample(points, 10, start=torch.Generator().manual_seed(5))
     assert torch.equal(a, b)
+
+
+@pytest.mark.parametrize("kind", ["normal", "grid with ties", "cloth-like sheet", "batch"])
+def test_fps_numpy_loop_gives_the_torch_loops_indices(kind):
+    gen = torch.Generator().manual_seed(11)
+    if kind == "normal":
+        pts = torch.randn(1, 1300, 3, generator=gen)
+    elif kind == "grid with ties":
+        pts = torch.randint(0, 4, (1, 600, 3), generator=gen).float()
+    elif kind == "cloth-like sheet":
+        u, v = torch.meshgrid(torch.linspace(0, 0.4, 25), torch.linspace(0, 0.4, 25), indexing="ij")
+        sheet = torch.stack([u, v, 0.01 * torch.sin(10 * u)], -1).reshape(1, -1, 3)
+        pts = sheet + 1e-4 * torch.randn(sheet.shape, generator=gen)
+    else:
+        pts = torch.randn(4, 300, 3, generator=gen)
+    pts = (pts - pts.mean(-2, keepdim=True)).float()
+    far = torch.randint(pts.shape[1], (pts.shape[0],), generator=gen)
+    k = min(512, pts.shape[1] - 1)
+    assert torch.equal(fps_loop_numpy(pts, k, far), fps_loop_torch(pts, k, far))
 
 
 def test_fps_batch_matches_single_clouds():

@@ -157,3 +157,13 @@ def test_bad_input(tmp_path, demos, capsys):
     for flag, value in (("--model.variant", "cp"), ("--model.depth", "3")):
         code, err = run_cli(capsys, *base, "--out", str(out), "--data.train", str(demos), flag, value)
         assert code == 2 and flag in err and len(err.splitlines()) == 1, err
+
+
+def test_data_workers_do_not_change_the_run(tmp_path, demos):
+    """Samples are seeded by (seed, epoch, index), so `--train.num_workers` changes the speed alone."""
+    args = [*TINY, "--data.train", str(demos), "--train.steps", "6", "--train.val_every", "6",
+            "--data.rotate", "True", "--data.val", str(demos)]
+    assert main(["train", *args, "--out", str(tmp_path / "w0")]) == 0
+    assert main(["train", *args, "--train.num_workers", "2", "--out", str(tmp_path / "w2")]) == 0
+    w0, w2 = read_log(tmp_path / "w0"), read_log(tmp_path / "w2")
+    assert [r["loss"] for r in w0] == [r["loss"] for r in w2] and w0[-1]["val_rmse"] == w2[-1]["val_rmse"]

@@ -104,8 +104,11 @@ class Config:
 
 
 def paper() -> Config:
-    """The paper's settings (App. B; REFERENCE.md, Model / Diffusion / Training): ~500k steps, for a GPU."""
-    return Config()
+    """The paper's settings (App. B; REFERENCE.md, Model / Diffusion / Training): ~500k steps, for a GPU.
+
+    Six data workers: in-process loading held one H100 to 6 steps per second, six workers to 29 (docs/scaling.md);
+    the samples do not depend on the number of workers."""
+    return Config(train=TrainConfig(num_workers=6))
 
 
 def cpu() -> Config:

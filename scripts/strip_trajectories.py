@@ -1,0 +1,43 @@
+"""Copy demonstration files without their per-step trajectories (the `traj_` arrays only DP3 learns from).
+
+    python scripts/strip_trajectories.py SRC_DIR DST_DIR
+
+A multimodal training demo is about 2 MB with trajectories and 0.1 MB without: the copy is what to ship to a
+machine that trains TAX3D alone. Each file is written to a temporary name and renamed.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import zipfile
+from pathlib import Path
+
+from tax3d.data.format import TRAJECTORY_PREFIX
+
+
+def strip(src: Path, dst: Path) -> None:
+    tmp = dst.with_name(dst.name + ".tmp")
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            if not info.filename.startswith(TRAJECTORY_PREFIX):
+                zout.writestr(info, zin.read(info))
+    os.replace(tmp, dst)
+
+
+def main() -> int:
+    if len(sys.argv) != 3 or not Path(sys.argv[1]).is_dir():
+        print("usage: python scripts/strip_trajectories.py SRC_DIR DST_DIR (SRC_DIR: a folder of demo_*.npz)",
+              file=sys.stderr)
+        return 2
+    src, dst = Path(sys.argv[1]), Path(sys.argv[2])
+    dst.mkdir(parents=True, exist_ok=True)
+    files = sorted(src.glob("demo_*.npz"))
+    for path in files:
+        strip(path, dst / path.name)
+    print(f"{len(files)} demos from {src} to {dst}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
