@@ -6,10 +6,7 @@ Prints one JSON object. Uses the shipped TAX3D-CD checkpoint unless --checkpoint
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import sys
 import tempfile
 import time
@@ -17,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tax3d import provenance
 from tax3d.demo import SHIPPED
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,8 +44,8 @@ def main() -> None:
         "command": "python " + " ".join(sys.argv),
         "checkpoint": str(args.checkpoint.resolve().relative_to(ROOT) if args.checkpoint.resolve().is_relative_to(ROOT)
                           else args.checkpoint),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
-        "date": datetime.date.today().isoformat(),
+        "machine": provenance.machine(),
+        "date": provenance.today(),
         "seconds_per_episode_1_worker": round(wall1 / len(one), 2),
         "predict_seconds_per_episode": round(float(np.mean([r["predict_seconds"] for r in one])), 3),
         "sim_seconds_per_episode": round(float(np.mean([r["sim_seconds"] for r in one])), 2),

@@ -12,17 +12,14 @@ loops on the same clouds, and the figures are the medians over rounds.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import statistics
 import sys
 import time
 
 import torch
 
-from tax3d import geometry
+from tax3d import geometry, provenance
 from tax3d.data.dataset import make_sample
 
 
@@ -76,9 +73,8 @@ def main() -> int:
     sample_ms = {name: round(1000 * statistics.median(v), 2) for name, v in per_sample.items()}
     print(json.dumps({
         "command": " ".join(["python", "benchmarks/fps.py", *sys.argv[1:]]),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-                   f"torch {torch.__version__}",
-        "date": datetime.date.today().isoformat(),
+        "machine": provenance.machine(f"torch {torch.__version__}"),
+        "date": provenance.today(),
         "threads": args.threads,
         "ms_per_anchor_cloud_1300_to_512": ms,
         "ms_per_training_sample_cd_512_512": sample_ms,

@@ -9,11 +9,8 @@ as a user of `tax3d generate --backend ray` meets them), their ratio, and whethe
 from __future__ import annotations
 
 import argparse
-import datetime
 import importlib.util
 import json
-import os
-import platform
 import sys
 import tempfile
 import time
@@ -21,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tax3d import provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.sim.generate import Args, generate
 
@@ -54,8 +52,8 @@ def main() -> int:
         identical = same_demos(Path(tmp) / "local", Path(tmp) / "ray")
     print(json.dumps({
         "command": "python " + " ".join(sys.argv),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
-        "date": datetime.date.today().isoformat(), "task": args.task, "demos": args.demos, "workers": args.workers,
+        "machine": provenance.machine(),
+        "date": provenance.today(), "task": args.task, "demos": args.demos, "workers": args.workers,
         "local_seconds": local, "ray_seconds": ray,
         "local_demos_per_second": args.demos / local, "ray_demos_per_second": args.demos / ray,
         "throughput_ratio_ray_vs_local": local / ray, "identical_demos": identical,

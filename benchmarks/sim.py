@@ -7,10 +7,7 @@ Prints one JSON object. Targets (issue: HangProcCloth benchmark): at most 10 s p
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import sys
 import tempfile
 import time
@@ -18,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tax3d import provenance
 from tax3d.sim.cloth import SIMPLE_CLOTH
 from tax3d.sim.env import SIM_STEPS_PER_ACTION, env_class
 from tax3d.sim.generate import Args, generate
@@ -55,8 +53,8 @@ def main() -> None:
     print(json.dumps({
         "command": "python " + " ".join(sys.argv),
         "task": args.task,
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
-        "date": datetime.date.today().isoformat(),
+        "machine": provenance.machine(),
+        "date": provenance.today(),
         "sim_steps_per_second": round(steps, 1),
         "seconds_per_episode_1_worker": round(wall1 / stats1["episodes"], 2),
         "episode_seconds_in_worker": round(stats1["seconds_per_episode"], 2),

@@ -9,14 +9,12 @@ penetration seen (sim/integrity.py).
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import sys
 import tempfile
 from pathlib import Path
 
+from tax3d import provenance
 from tax3d.sim.generate import Args, generate
 
 TASKS = ("hangproccloth-simple", "hangproccloth-unimodal", "hangproccloth-multimodal", "hangbag")
@@ -33,8 +31,8 @@ def main() -> int:
     args = parser.parse_args()
     report = {
         "command": "python " + " ".join(sys.argv),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
-        "date": datetime.date.today().isoformat(),
+        "machine": provenance.machine(),
+        "date": provenance.today(),
         "rates": [],
     }
     for task in args.tasks.split(","):

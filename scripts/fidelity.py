@@ -9,9 +9,6 @@ our goal cloud to the official goal (action_pc + flow).
 from __future__ import annotations
 
 import argparse
-import datetime
-import os
-import platform
 import json
 import sys
 import tempfile
@@ -19,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tax3d import provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.sim.env import HangClothEnv
 from tax3d.sim.generate import Args, generate
@@ -86,8 +84,8 @@ def main() -> int:
         return 2
     report = {
         "command": "python " + " ".join(sys.argv),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
-        "date": datetime.date.today().isoformat(),
+        "machine": provenance.machine(),
+        "date": provenance.today(),
     }
     for split in ("train", "val"):
         folder = args.official / split

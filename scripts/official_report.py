@@ -10,16 +10,16 @@ docs/results/model_benchmark.json (`python benchmarks/model.py > docs/results/mo
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
-import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
+
+from tax3d import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
@@ -43,9 +43,8 @@ def measure(checkpoint: Path, samples: int, seed: int) -> dict:
         "command": "python " + " ".join([str(Path(sys.argv[0]).relative_to(ROOT) if Path(sys.argv[0]).is_absolute()
                                              else sys.argv[0])] + sys.argv[1:]),
         "checkpoint": str(checkpoint.relative_to(ROOT) if checkpoint.is_relative_to(ROOT) else checkpoint),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-                   f"torch {torch.__version__}",
-        "date": datetime.date.today().isoformat(),
+        "machine": provenance.machine(f"torch {torch.__version__}"),
+        "date": provenance.today(),
         "demos": len(val), "samples": samples, "seed": seed,
         "mean_goal_baseline_rmse": float(np.mean(base)),
         "samplers": {},

@@ -13,16 +13,14 @@ of DATA/train in the anchor frame, placed at each scene's anchor (`tax3d.metrics
 from __future__ import annotations
 
 import argparse
-import datetime
 import functools
 import json
-import os
-import platform
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from tax3d import provenance
 from tax3d.atomic import write_text
 from tax3d.errors import UsageError
 from tax3d.evaluate import Args, EvalJob, cloth_key, plan_jobs, run_jobs, summarise
@@ -112,8 +110,8 @@ def main() -> int:
                         "exploded": sum(1 for r in rows if r["exploded"] or r.get("error"))}
     out = {"command": "python " + " ".join(sys.argv), "task": args.task, "goal": args.goal,
            "offset": list(offset if offset is not None else get_task(args.task).policy_offset),
-           "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
-           "date": datetime.date.today().isoformat(), "splits": splits}
+           "machine": provenance.machine(),
+           "date": provenance.today(), "splits": splits}
     text = json.dumps(out, indent=2)
     if args.out is not None:
         write_text(args.out, text + "\n")

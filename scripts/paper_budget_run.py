@@ -15,16 +15,15 @@ and where it stopped. With --minutes 0 it only runs the probes and prints their 
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import torch
+
+from tax3d import provenance
 
 # the share of the wall time left for training steps (validation, start-up and the final checkpoint take the rest)
 STEP_SHARE = 0.9
@@ -102,10 +101,9 @@ def main() -> int:
     rates = {probe_spec: probe(args, *probe_spec) for probe_spec in probes}
     rate, workers = max((r, w) for (precision, w), r in rates.items() if precision == "fp32")
     summary = {
-        "machine": f"{torch.cuda.get_device_name(0) if args.device == 'cuda' else 'CPU'}, "
-                   f"{os.cpu_count()} CPU cores, {platform.machine()}, Python {platform.python_version()}, "
-                   f"torch {torch.__version__}",
-        "date": datetime.date.today().isoformat(),
+        "machine": provenance.machine(f"torch {torch.__version__}",
+                                      torch.cuda.get_device_name(0) if args.device == "cuda" else "no GPU"),
+        "date": provenance.today(),
         "command": " ".join(["python", "scripts/paper_budget_run.py", *sys.argv[1:]]),
         "probe_steps_per_second": {probe_name(*k): round(v, 2) for k, v in rates.items()},
         "paper_budget_hours_at_this_rate": round(500_000 / rate / 3600, 2),

@@ -9,16 +9,15 @@ and noise. Prints JSON and, with --out, keeps it with the command, machine and d
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
-import platform
 import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from tax3d import provenance
 from tax3d.atomic import write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
@@ -58,8 +57,8 @@ def main(argv=None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     result = {"command": "python scripts/sampler_check.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-              "date": datetime.date.today().isoformat(),
-              "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+              "date": provenance.today(),
+              "machine": provenance.machine(),
               "demos": len(demos), "samples": args.samples, "seed": args.seed, "rows": rows}
     text = json.dumps(result, indent=1) + "\n"
     if args.out:

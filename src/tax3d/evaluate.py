@@ -5,10 +5,7 @@ The environment runner (this module) is separate from the policy it evaluates (`
 
 from __future__ import annotations
 
-import datetime
 import json
-import os
-import platform
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -16,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 
+from tax3d import provenance
 from tax3d.atomic import write_text
 from tax3d.errors import UsageError
 from tax3d.parallel import check_backend, run_each
@@ -277,8 +275,8 @@ def evaluate(args: Args, progress: bool = True) -> dict:
     summary = {
         "checkpoint": str(args.checkpoint), "task": args.task, "variant": model.config.model.variant,
         "command": "tax3d eval " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["eval"] else "tax3d.evaluate",
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
-        "date": datetime.date.today().isoformat(), "args": {k: str(v) for k, v in asdict(args).items()},
+        "machine": provenance.machine(),
+        "date": provenance.today(), "args": {k: str(v) for k, v in asdict(args).items()},
         "splits": summarise(results, splits),
         "policy_offset": list(get_task(args.task).policy_offset if args.policy_offset is None else args.policy_offset),
     }

@@ -10,10 +10,7 @@ the command, machine and date.
 
 from __future__ import annotations
 
-import datetime
 import json
-import os
-import platform
 import sys
 import time
 from dataclasses import MISSING, dataclass, fields
@@ -23,6 +20,7 @@ from typing import Literal, Optional
 import numpy as np
 import torch
 
+from tax3d import provenance
 from tax3d.atomic import atomic_write, write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
@@ -96,8 +94,8 @@ def run(args: Args) -> int:
         write_npz(Path(args.out), goals, files, errors)
     if args.summary:
         kept = {"command": command_line(args),
-                "date": datetime.date.today().isoformat(),
-                "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+                "date": provenance.today(),
+                "machine": provenance.machine(),
                 "checkpoint": str(args.checkpoint), **summary}
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
         write_text(args.summary, json.dumps(kept, indent=1) + "\n")
