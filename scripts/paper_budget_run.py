@@ -24,6 +24,7 @@ from pathlib import Path
 import torch
 
 from tax3d import provenance
+from tax3d.atomic import write_text
 
 # the share of the wall time left for training steps (validation, start-up and the final checkpoint take the rest)
 STEP_SHARE = 0.9
@@ -35,9 +36,13 @@ def train_command(args, out: Path, extra: list[str]) -> list[str]:
             *args.train_options, *extra]
 
 
+def read_log(log: Path) -> list[dict]:
+    return [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+
+
 def steps_per_second(log: Path) -> float:
     """From log.jsonl: steps over seconds between the fifth step (or the middle one) and the last (start-up and compilation left out)."""
-    records = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+    records = read_log(log)
     if len(records) < 3:
         raise SystemExit(f"{log}: only {len(records)} steps logged; expected at least 3 from a probe")
     first, last = records[min(4, len(records) // 2)], records[-1]
@@ -118,7 +123,7 @@ def main() -> int:
              "--data.val", args.val, "--train.time-limit", str(args.minutes), "--train.num-workers", str(workers)]
     print(f"training {steps} steps, validating every {every}", flush=True)
     run_training(train_command(args, Path(args.out), extra), Path(args.out))
-    records = [json.loads(line) for line in (Path(args.out) / "log.jsonl").read_text().splitlines() if line]
+    records = read_log(Path(args.out) / "log.jsonl")
     vals = [(r["step"], r["val_rmse"]) for r in records if "val_rmse" in r]
     summary.update({
         "train_options": [*args.train_options, *extra],
@@ -128,7 +133,7 @@ def main() -> int:
         "val_rmse": vals,
         "best_val_rmse": min(v for _, v in vals),
     })
-    (Path(args.out) / "budget.json").write_text(json.dumps(summary, indent=1) + "\n")
+    write_text(Path(args.out) / "budget.json", json.dumps(summary, indent=1) + "\n")
     print(json.dumps(summary, indent=1))
     return 0
 

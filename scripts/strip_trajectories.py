@@ -8,21 +8,21 @@ machine that trains TAX3D alone. Each file is written to a temporary name and re
 
 from __future__ import annotations
 
-import os
 import sys
 import zipfile
 from pathlib import Path
 
+from tax3d.atomic import atomic_write
 from tax3d.data.format import TRAJECTORY_PREFIX
 
 
 def strip(src: Path, dst: Path) -> None:
-    tmp = dst.with_name(dst.name + ".tmp")
-    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zout:
-        for info in zin.infolist():
-            if not info.filename.startswith(TRAJECTORY_PREFIX):
-                zout.writestr(info, zin.read(info))
-    os.replace(tmp, dst)
+    def write(tmp: Path) -> None:
+        with zipfile.ZipFile(src) as zin, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zout:
+            for info in zin.infolist():
+                if not info.filename.startswith(TRAJECTORY_PREFIX):
+                    zout.writestr(info, zin.read(info))
+    atomic_write(dst, write)
 
 
 def main() -> int:
