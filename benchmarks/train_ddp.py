@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from tax3d.data.format import save_demo
+from tax3d.train import read_log
 
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH_ENV = ("WORLD_SIZE", "RANK", "LOCAL_RANK", "LOCAL_WORLD_SIZE", "MASTER_ADDR", "MASTER_PORT")
@@ -55,7 +56,7 @@ def write_demos(folder: Path, count: int) -> None:
 
 
 def step_seconds(log: Path, warmup: int) -> list[float]:
-    seconds = {r["step"]: r["seconds"] for r in map(json.loads, log.read_text().splitlines())}
+    seconds = {r["step"]: r["seconds"] for r in read_log(log)}
     return [seconds[s] - seconds[s - 1] for s in range(warmup + 1, max(seconds))]
 
 

@@ -14,7 +14,6 @@ the anchor cloud after farthest point sampling; prints one JSON object.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import sys
 from pathlib import Path
@@ -22,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from tax3d import provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.geometry import farthest_point_sample
 from tax3d.metrics import MeanGoalBaseline, rmse
@@ -51,7 +51,7 @@ def main() -> int:
     train = splits["train"]
     mean = MeanGoalBaseline.fit(train)
     turned = np.mean([(d["action_pc"] + d["flow"] - d["anchor_pc"].mean(0)) @ rot_z(d["rot"][2]) for d in train], 0)
-    out = {"command": "python " + " ".join(sys.argv), "date": datetime.date.today().isoformat(), "splits": {}}
+    out = {"command": "python " + " ".join(sys.argv), "date": provenance.today(), "splits": {}}
     for name, demos in splits.items():
         goals = [d["action_pc"] + d["flow"] for d in demos]
         plain = [float(rmse(mean.predict(d["action_pc"], d["anchor_pc"]), g)) for d, g in zip(demos, goals)]

@@ -10,7 +10,6 @@ prediction's coverage and precision RMSE alike: what a regression that averages 
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import sys
 from pathlib import Path
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from tax3d.atomic import write_text
+from tax3d import provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.metrics import rmse
 
@@ -32,7 +32,7 @@ def main() -> int:
         print(f"error: --data {args.data}: expected train, unseen or ood folders of demo_N.npz files inside it",
               file=sys.stderr)
         return 2
-    out = {"command": "python " + " ".join(sys.argv), "date": datetime.date.today().isoformat(), "splits": {}}
+    out = {"command": "python " + " ".join(sys.argv), "date": provenance.today(), "splits": {}}
     for split in splits:
         cloths: dict[str, list[np.ndarray]] = {}
         for path in list_demos(args.data / split):

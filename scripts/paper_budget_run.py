@@ -25,6 +25,7 @@ import torch
 
 from tax3d import provenance
 from tax3d.atomic import write_text
+from tax3d.train import read_log
 
 # the share of the wall time left for training steps (validation, start-up and the final checkpoint take the rest)
 STEP_SHARE = 0.9
@@ -34,10 +35,6 @@ def train_command(args, out: Path, extra: list[str]) -> list[str]:
     return [sys.executable, "-m", "tax3d.cli", "train", "--preset", "paper", "--model.variant", args.variant,
             "--data.train", args.train, "--data.task", args.task, "--train.device", args.device, "--out", str(out),
             *args.train_options, *extra]
-
-
-def read_log(log: Path) -> list[dict]:
-    return [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
 
 
 def steps_per_second(log: Path) -> float:

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from tax3d.atomic import write_text
+from tax3d.train import read_log
 
 
 def read_curve(run: Path) -> dict:
@@ -18,7 +19,7 @@ def read_curve(run: Path) -> dict:
     log, config = run / "log.jsonl", run / "config.json"
     try:
         cfg = json.loads(config.read_text())
-        lines = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+        lines = read_log(log)
     except (OSError, ValueError) as err:
         raise ValueError(f"{run}: no readable config.json and log.jsonl ({type(err).__name__}); expected a "
                          f"`tax3d train` output folder") from None

@@ -14,6 +14,7 @@ from tax3d.baselines.dp3 import DP3, DP3Policy, is_dp3_checkpoint
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
 from tax3d.baselines.dp3.network import ConditionalUnet1D
+from tax3d.train import read_log as read_train_log
 from tax3d.baselines.dp3.normalizer import MinMaxNormalizer
 from tax3d.baselines.dp3.scheduler import DDIM, squaredcos_cap_v2_betas
 from tax3d.cli import main
@@ -212,7 +213,7 @@ def test_save_load_round_trip_gives_identical_actions(tmp_path):
 
 
 def read_log(out):
-    return [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    return read_train_log(out / "log.jsonl")
 
 
 def test_train_command_writes_a_checkpoint_and_resumes_exactly(tmp_path, demos, monkeypatch):

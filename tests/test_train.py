@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 
 import numpy as np
 import pytest
@@ -34,7 +33,7 @@ def demos(tmp_path):
 
 
 def read_log(out):
-    return [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    return train.read_log(out / "log.jsonl")
 
 
 def test_overfits_one_demonstration(tmp_path, capsys):

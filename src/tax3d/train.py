@@ -169,6 +169,11 @@ def find_last(out: Path) -> Path | None:
     return None
 
 
+def read_log(path: Path) -> list[dict]:
+    """The records of a run's log.jsonl, one per logged step."""
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
 def truncate_log(path: Path, step: int) -> None:
     """Drop log lines written after the checkpoint a run resumes from (they will be written again)."""
     if not path.is_file():
