@@ -11,6 +11,7 @@ from safetensors.torch import load_file
 from tax3d import config as cfg
 from tax3d import train
 from tax3d.cli import main
+from tax3d.data.dataset import VARIANTS
 from tax3d.data.format import load_demo, save_demo
 from tax3d.metrics import rmse
 from tax3d.model.tax3d import Tax3D
@@ -73,13 +74,17 @@ def test_outputs_and_config(tmp_path, demos):
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary folders left
 
 
-@pytest.mark.parametrize("variant", ["rd", "sp", "cd_nac"])
-def test_every_kind_of_variant_trains(tmp_path, demos, variant):
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_every_variant_trains_and_predicts(tmp_path, demos, variant):
     out = tmp_path / variant
     assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--model.variant", variant,
                  "--train.steps", "2", "--train.val_every", "2", "--data.val", str(demos)]) == 0
     assert np.isfinite(read_log(out)[-1]["val_rmse"])
-    assert Tax3D.from_pretrained(out / "best").spec.name == variant
+    model = Tax3D.from_pretrained(out / "best")
+    assert model.spec.name == variant
+    demo = load_demo(demos / "demo_0.npz")
+    goals = model.predict(demo["action_pc"], demo["anchor_pc"], num_samples=3, seed=0)
+    assert goals.shape == (3, *demo["action_pc"].shape) and np.isfinite(goals).all()
 
 
 def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, demos, monkeypatch):
