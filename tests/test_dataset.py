@@ -17,7 +17,7 @@ from tax3d.data.dataset import (
 )
 from tax3d.data.format import DemoError, save_demo
 from tax3d.errors import UsageError
-from tax3d.geometry import rotate_z
+from tax3d.geometry import farthest_point_sample, rotate_z
 
 OFFICIAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "tax3d-official"
 NA, NB = 16, 24  # points sampled per cloud in these tests
@@ -301,3 +301,36 @@ def test_official_demos():
         assert batch["action"].shape == (2, 512, 3) and batch["anchor"].shape == (2, 512, 3)
         assert torch.isfinite(batch["target"]).all()
         close(to_world(batch["target"], batch, spec), batch["goal"])
+
+
+@pytest.mark.parametrize("rotate", [False, True])
+def test_cached_subsets(demo_dir, rotate):
+    """subsets > 0: each demo's farthest-point subsets are drawn once (deterministic in the seed), items pick one
+    of them, every demo is covered, and the items equal make_sample on those rows."""
+    folder, demos = demo_dir
+    make = lambda seed: DemoDataset(folder, "cd", num_action_points=NA, num_anchor_points=NB,  # noqa: E731
+                                    train_size=60, seed=seed, subsets=4, rotate=rotate)
+    a, b = make(3), make(3)
+    assert len(a.subsets) == 3 and all(len(s) == 4 for s in a.subsets)
+    for sa, sb in zip(a.subsets, b.subsets):
+        for (ia, ja), (ib, jb) in zip(sa, sb):
+            assert torch.equal(ia, ib) and torch.equal(ja, jb)
+    assert any(not torch.equal(x[0], y[0]) for x, y in zip(a.subsets[0], make(4).subsets[0]))
+    action = torch.as_tensor(demos[0]["action_pc"])
+    for idx, _ in a.subsets[0]:
+        assert len(set(idx.tolist())) == NA  # distinct rows
+        first = idx[0].item()
+        assert torch.equal(idx, farthest_point_sample(action, NA, start=first))
+    seen = {(int(a[i]["demo_index"]), tuple(a[i]["action_idx"][:3].tolist())) for i in range(60)}
+    assert {d for d, _ in seen} == {0, 1, 2}
+    assert len(seen) > 3  # more than one subset per demo is used
+    item = a[5]
+    subset = next(s for s in a.subsets[int(item["demo_index"])] if torch.equal(s[0], item["action_idx"]))
+    angle_gen = a.generator(5)
+    torch.randint(4, (), generator=angle_gen)
+    expected = make_sample(*clouds(demos[int(item["demo_index"])]), "cd", angle_gen, NA, NB, rotate,
+                           indices=subset)
+    for key in ("action", "anchor", "target", "goal"):
+        assert torch.equal(item[key], expected[key]), key
+    with pytest.raises(UsageError):
+        DemoDataset(folder, "cd", subsets=-1)

@@ -239,3 +239,39 @@ def test_model_sees_original_timesteps(diffusion):
 
     spaced.p_sample_loop(model_fn, (1, 2, 3), generator=torch.Generator().manual_seed(0))
     assert [s[0] for s in seen] == space_timesteps(T, 10)[::-1]
+
+
+@pytest.mark.parametrize("loss", ["x0", "v", "min_snr"])
+def test_x0_loss_weights(loss):
+    """The mean term is w(t) times the x_0 MSE: w = 1 for x0 (no dependence on t), SNR + 1 for v, min(SNR, 5)."""
+    d = GaussianDiffusion(linear_betas(T), loss=loss)
+    torch.manual_seed(7)
+    x0 = torch.randn(3, 8, 3, dtype=torch.float64)
+    t = torch.tensor([0, 10, 99])
+    noise = torch.randn_like(x0)
+    error = 0.3 * torch.randn_like(x0)
+    x_t = d.q_sample(x0, t, noise)
+    eps = d.predict_eps_from_xstart(x_t, t, x0 + error)  # a network whose x_0 is off by `error`
+    out = torch.cat([eps, torch.zeros_like(eps)], -1)
+    mse = d.training_losses(lambda x, tt: out, x0, t, noise)["mse"]
+    snr = torch.from_numpy(d.alphas_cumprod / (1 - d.alphas_cumprod))[t]
+    weight = {"x0": torch.ones(3, dtype=torch.float64), "v": snr + 1, "min_snr": snr.clamp(max=5.0)}[loss]
+    torch.testing.assert_close(mse, weight * (error**2).mean(dim=(1, 2)))
+    if loss == "x0":
+        assert torch.allclose(d.x0_loss_weight(torch.arange(T)), torch.ones(T, dtype=torch.float64))
+
+
+def test_epsilon_loss_is_snr_weighted_x0_error(diffusion):
+    """The paper's epsilon MSE, written in x_0 terms, weights the error by SNR(t): heavily at small t."""
+    x0 = torch.randn(2, 8, 3, dtype=torch.float64)
+    t = torch.tensor([0, 99])
+    noise = torch.randn_like(x0)
+    error = 0.3 * torch.randn_like(x0)
+    x_t = diffusion.q_sample(x0, t, noise)
+    eps = diffusion.predict_eps_from_xstart(x_t, t, x0 + error)
+    mse = diffusion.training_losses(lambda x, tt: torch.cat([eps, torch.zeros_like(eps)], -1), x0, t, noise)["mse"]
+    snr = torch.from_numpy(diffusion.snr)[t]
+    torch.testing.assert_close(mse, snr * (error**2).mean(dim=(1, 2)))
+    assert snr[0] > 1000 * snr[1]
+    with pytest.raises(ValueError):
+        GaussianDiffusion(linear_betas(T), loss="l1")

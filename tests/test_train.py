@@ -171,3 +171,48 @@ def test_data_workers_do_not_change_the_run(tmp_path, demos):
     assert main(["train", *args, "--train.num_workers", "2", "--out", str(tmp_path / "w2")]) == 0
     w0, w2 = read_log(tmp_path / "w0"), read_log(tmp_path / "w2")
     assert [r["loss"] for r in w0] == [r["loss"] for r in w2] and w0[-1]["val_rmse"] == w2[-1]["val_rmse"]
+
+
+def test_schedule_never_rises_after_the_warm_up():
+    c = cfg.cpu().train
+    lrs = [train.get_lr(step, c) for step in range(c.steps + 50)]
+    assert lrs[c.warmup_steps - 1] == pytest.approx(c.lr)
+    after = np.array(lrs[c.warmup_steps - 1:])
+    assert (np.diff(after) <= 1e-15).all() and after[-1] == 0.0
+
+
+def test_ema_decay_warms_up():
+    """The average's decay starts near 0.1, so it follows the early weights, and reaches the set decay later."""
+    assert train.ema_decay(0, 0.999) == pytest.approx(0.1)
+    decays = [train.ema_decay(s, 0.999) for s in range(20000)]
+    assert (np.diff(decays) >= 0).all() and decays[-1] == 0.999
+    assert train.ema_decay(100, 0.999) < 0.92  # without warm-up the average would keep ~90% of the initial weights
+    assert train.ema_decay(20, 0.5) == 0.5
+
+
+def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeypatch):
+    """--train.minutes measures the step rate, fixes train.steps and val_every (recorded in config.json and the
+    log) and a resumed run continues the same plan."""
+    clock = {"now": 1000.0}
+    monkeypatch.setattr(train.time, "time", lambda: clock["now"])
+    step_loss = train.TrainingLoss.forward
+
+    def timed(self, *a):
+        clock["now"] += 0.5  # every step takes half a second of this fake clock
+        return step_loss(self, *a)
+
+    monkeypatch.setattr(train.TrainingLoss, "forward", timed)
+    out = tmp_path / "planned"
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
+                 "--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]) == 0
+    log = read_log(out)
+    plan = next(r["plan"] for r in log if "plan" in r)
+    # 30 s at 0.5 s a step, validations taking no time on this clock: 60 steps in all
+    assert plan["steps"] == 60 and plan["val_every"] == 20 and plan["step_seconds"] == pytest.approx(0.5)
+    assert cfg.load(out / "config.json").train.steps == 60 and log[-1]["step"] == 60
+    assert [r["step"] for r in log if "val_rmse" in r] == [20, 40, 60]
+    assert all(r["lr"] <= plan_lr for r, plan_lr in zip(log[10:], [r["lr"] for r in log[9:]]))
+    # more minutes on resume do not re-plan a run that is already planned
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
+                 "--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]) == 0
+    assert read_log(out)[-1]["step"] == 60

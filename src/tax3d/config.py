@@ -40,6 +40,9 @@ class DiffusionConfig:
     prediction: Literal["epsilon", "sample"] = "epsilon"
     """what the network outputs: the noise (the paper) or the clean target x_0, turned into the noise
     estimate eps = (x_t / sqrt(abar_t) - x_0) / sqrt(1 / abar_t - 1) so that loss and samplers are unchanged"""
+    loss: Literal["epsilon", "x0", "v", "min_snr"] = "epsilon"
+    """the mean term of the loss: the epsilon MSE (the paper's: the x_0 error weighted by SNR(t)), or the x_0 MSE
+    weighted by 1 (x0), SNR(t) + 1 (v) or min(SNR(t), 5) (min_snr); docs/training.md measures them"""
     sample_steps: int = 100
     """denoising steps at prediction: fewer than num_timesteps respaces the schedule"""
     sampler: Literal["ddpm", "ddim"] = "ddpm"
@@ -59,6 +62,8 @@ class DataConfig:
     """samples per epoch (demos are repeated)"""
     target_scale: float = 1.0
     """the network's target is the variant's target times this"""
+    subsets: int = 0
+    """farthest-point subsets sampled once per demo, an item picking one at random (0: sample afresh each time)"""
     rotate: bool = True
     """rotate anchor and goal about z by U(0, 2 pi) in training"""
     task: str = ""
@@ -82,6 +87,11 @@ class TrainConfig:
     """samples per validation demo for the min-of-samples RMSE"""
     val_demos: int = 0
     """validate on the first this many val demos (0: all)"""
+    minutes: float = 0.0
+    """plan the run to end after this many minutes on this machine: the step rate measured over the first steps
+    fixes train.steps (and so the cosine schedule) then, and the plan is recorded in config.json (0: use steps)"""
+    validations: int = 0
+    """with train.minutes: validate this many times, evenly over the planned steps (0: every val_every steps)"""
     time_limit: float = 0.0
     """stop after this many minutes of training, as if at the last step (0: no limit)"""
     ema: float = 0.0
@@ -200,6 +210,8 @@ def validate(config: Config, where: str = "config") -> Config:
         (config.data.target_scale > 0, "data.target_scale must be positive"),
         (config.train.batch_size >= 1, "train.batch_size must be positive"),
         (config.train.steps >= 1, "train.steps must be positive"),
+        (config.train.minutes >= 0, "train.minutes must not be negative"),
+        (config.train.validations >= 0, "train.validations must not be negative"),
         (0.0 <= config.train.ema < 1.0, "train.ema must lie in [0, 1)"),
         (config.train.val_samples >= 1, "train.val_samples must be positive"),
     ]

@@ -70,6 +70,12 @@ def get_lr(step: int, c: cfg.TrainConfig) -> float:
     return c.lr * 0.5 * (1.0 + math.cos(math.pi * min(progress, 1.0)))
 
 
+def ema_decay(step: int, decay: float) -> float:
+    """The EMA's decay after optimizer step `step` (0-based): min(decay, (1 + step) / (10 + step)), a warm-up as in
+    TensorFlow's ExponentialMovingAverage with num_updates, so the average forgets the initial weights early."""
+    return min(decay, (1.0 + step) / (10.0 + step))
+
+
 class StepBatches(Sampler):
     """Batches of (epoch, index) pairs from a stream of per-epoch permutations, starting at a given step.
 
@@ -113,6 +119,23 @@ class EpochItems(Dataset):
         epoch, index = key
         self.dataset.set_epoch(epoch)
         return self.dataset[index]
+
+
+def plan_step(c: cfg.TrainConfig) -> int:
+    """The step after which a --train.minutes run fixes its step count: inside the warm-up, where the learning
+    rate does not depend on the total."""
+    return max(6, min(25, c.warmup_steps))
+
+
+def plan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: float, val_seconds: float) -> tuple[int, int]:
+    """(steps, val_every) that end a run of c.minutes: the time left, spent on steps of step_seconds and
+    validations of val_seconds, every c.val_every steps or c.validations times, one of them at the end."""
+    left = 60.0 * c.minutes - elapsed - val_seconds
+    if c.validations > 0:
+        steps = step + max(1, int((left - (c.validations - 1) * val_seconds) / step_seconds))
+        return steps, max(1, -(-steps // c.validations))
+    per_step = step_seconds + val_seconds / c.val_every
+    return step + max(1, int(left / per_step)), c.val_every
 
 
 # --- validation ------------------------------------------------------------------------------------------------
@@ -266,6 +289,27 @@ def mean_losses(world: distributed.World, losses: dict, out_of_time: bool) -> tu
     return dict(zip(losses, values[:-1])), values[-1] > 0
 
 
+def make_plan(config: cfg.Config, model: Tax3D, ema, val_demos: list[dict], step: int, elapsed: float,
+              step_seconds: float, world: distributed.World, device: torch.device) -> dict:
+    """Fix config.train.steps for a --train.minutes run (every rank the same) after timing one validation."""
+    c = config.train
+    val_seconds = 0.0
+    if world.main and val_demos:
+        evaluated = copy.deepcopy(model)
+        if ema is not None:
+            evaluated.net.load_state_dict(ema.state_dict())
+        started = time.time()
+        validate(evaluated, val_demos, c.val_samples, seed=c.seed)
+        val_seconds = time.time() - started
+    steps, val_every = plan_steps(c, step, elapsed + val_seconds, step_seconds, val_seconds)
+    if world.distributed:
+        planned = torch.tensor([float(steps), float(val_every)], device=device)
+        steps, val_every = (int(round(float(v))) for v in distributed.mean(world, planned))
+    c.steps, c.val_every = steps, val_every
+    return {"steps": steps, "val_every": val_every, "minutes": c.minutes, "step_seconds": step_seconds,
+            "val_seconds": val_seconds}
+
+
 # --- the loop --------------------------------------------------------------------------------------------------
 
 
@@ -300,7 +344,7 @@ def run(args: Args) -> int:
     dataset = DemoDataset(config.data.train, config.model.variant, train=True, rotate=config.data.rotate,
                           num_action_points=config.data.num_action_points,
                           num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size,
-                          target_scale=config.data.target_scale, seed=c.seed)
+                          target_scale=config.data.target_scale, seed=c.seed, subsets=config.data.subsets)
     val_demos = load_val_demos(config)
     distributed.start(world, device)
     try:
@@ -340,7 +384,11 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     model.train()
     started = time.time() - elapsed
     share = world.share(c.batch_size)
+    planning = c.minutes > 0 and step < plan_step(c)
+    rate_from = None  # (step, time) from which the step rate is measured: after the first, slower steps
     while step < c.steps:
+        if planning and rate_from is None and step >= min(5, plan_step(c) - 1):
+            rate_from = (step, time.time())
         batch = {k: v.to(device) for k, v in next(batches).items()}
         lr = get_lr(step, c)
         for group in optimizer.param_groups:
@@ -355,15 +403,25 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
             torch.nn.utils.clip_grad_norm_(model.parameters(), c.grad_clip)
         optimizer.step()
         if ema is not None:
+            decay = ema_decay(step, c.ema)
             with torch.no_grad():
                 for e, p in zip(ema.parameters(), model.net.parameters()):
-                    e.lerp_(p, 1.0 - c.ema)
+                    e.lerp_(p, 1.0 - decay)
         step += 1
         bar.update(1)
 
         out_of_time = c.time_limit > 0 and time.time() - started > 60 * c.time_limit
         values, out_of_time = mean_losses(world, losses, out_of_time)
         record = {"step": step, **values, "lr": lr}
+        if planning and step == plan_step(c):
+            planning = False
+            record["plan"] = make_plan(config, model, ema, val_demos, step, time.time() - started,
+                                       (time.time() - rate_from[1]) / (step - rate_from[0]), world, device)
+            bar.total = c.steps
+            if world.main:
+                cfg.save(config, out / "config.json")
+                print(f"planned {c.steps} steps for {c.minutes:g} minutes ({record['plan']['step_seconds']:.3f} s "
+                      f"per step, {record['plan']['val_seconds']:.1f} s per validation)", file=sys.stderr)
         if step % c.val_every == 0 or step == c.steps or out_of_time:
             if world.main:
                 weights = (ema if ema is not None else model.net).state_dict()
@@ -391,6 +449,9 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     bar.close()
     if log is not None:
         log.close()
+        minutes = (time.time() - started) / 60
+        kept = f"best validation RMSE {best:.3f} in {out / 'best'}" if math.isfinite(best) else f"weights in {out / 'last'}"
+        print(f"trained {step} steps in {minutes:.1f} min; {kept}", file=sys.stderr)
     return 0
 
 

@@ -134,18 +134,22 @@ def make_sample(
     num_anchor_points: int | None = 512,
     rotate: bool = False,
     target_scale: float = 1.0,
+    indices: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> dict:
     """One training sample from world-frame action (N, 3), anchor (M, 3) and goal (N, 3) points.
 
     FPS picks num_action_points and num_anchor_points (None: all points, in order). With `rotate`, the
     anchor and the goal turn about z by U(0, 2 pi) and the action does not (REFERENCE.md, Training): the
-    result is a new scene, and `goal` is that scene's world-frame goal. Returns float32 tensors
-    (plus the int64 action_idx); see `DemoDataset` for the keys.
+    result is a new scene, and `goal` is that scene's world-frame goal. `indices` (action rows, anchor rows) given
+    replace the sampling. Returns float32 tensors (plus the int64 action_idx); see `DemoDataset` for the keys.
     """
     spec = variant_spec(spec)
     action, anchor, goal = (torch.as_tensor(x, dtype=torch.float64) for x in (action, anchor, goal))
-    action_idx = _sample_indices(action, num_action_points, generator)
-    anchor = anchor[_sample_indices(anchor, num_anchor_points, generator)]
+    if indices is None:
+        indices = (_sample_indices(action, num_action_points, generator),
+                   _sample_indices(anchor, num_anchor_points, generator))
+    action_idx = indices[0]
+    anchor = anchor[indices[1]]
     action, goal = action[action_idx], goal[action_idx]
 
     # The pivot is the anchor mean (the rotation happens in the anchor frame), except for -W, which has no
@@ -211,6 +215,9 @@ class DemoDataset(Dataset):
     NAC variants get the same items as CD/CP: to_world needs the action points, the model ignores them.
     Item i of epoch e uses demo i % len(files) and a generator seeded by (seed, e, i); call set_epoch(e)
     before each epoch (with DataLoader workers, before the loader's iterator is made).
+    With `subsets` > 0 the point sampling is done once: each demo gets that many farthest-point subsets (each from
+    its own random first point, seeded by (seed, demo, subset)) and an item picks one of them at random; without
+    rotation the whole sample of each subset is made once and kept.
     """
 
     def __init__(
@@ -225,6 +232,7 @@ class DemoDataset(Dataset):
         train_size: int | None = None,
         target_scale: float = 1.0,
         seed: int = 0,
+        subsets: int = 0,
     ):
         self.spec = variant_spec(variant)
         self.files = demo_files(sources)
@@ -244,6 +252,31 @@ class DemoDataset(Dataset):
             demo = load_demo(path)
             self.demos.append(tuple(torch.from_numpy(np.asarray(x, dtype=np.float64)) for x in (
                 demo["action_pc"], demo["anchor_pc"], demo["action_pc"] + demo["flow"])))
+        if subsets < 0:
+            raise UsageError(f"subsets is {subsets}; expected 0 (sample points afresh) or a positive number")
+        self.subsets = [self._subsets(d, subsets) for d in range(len(self.demos))] if subsets else None
+        self.cached = None
+        if self.subsets is not None and not self.rotate:
+            self.cached = [[self._sample(d, idx, None) for idx in demo] for d, demo in enumerate(self.subsets)]
+
+    def _subsets(self, demo_index: int, count: int) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        action, anchor, _ = self.demos[demo_index]
+        out = []
+        for j in range(count):
+            seed = np.random.SeedSequence([self.seed, demo_index, j, 1]).generate_state(1)[0]
+            generator = torch.Generator().manual_seed(int(seed))
+            out.append((_sample_indices(action, self.num_action_points, generator),
+                        _sample_indices(anchor, self.num_anchor_points, generator)))
+        return out
+
+    def _sample(self, demo_index: int, indices, generator: torch.Generator | None) -> dict:
+        action, anchor, goal = self.demos[demo_index]
+        sample = make_sample(
+            action, anchor, goal, self.spec, generator,
+            self.num_action_points, self.num_anchor_points, self.rotate, self.target_scale, indices,
+        )
+        sample["demo_index"] = torch.tensor(demo_index, dtype=torch.int64)
+        return sample
 
     def set_epoch(self, epoch: int) -> None:
         self.epoch = int(epoch)
@@ -260,13 +293,13 @@ class DemoDataset(Dataset):
             raise IndexError(f"index {index} out of range for {len(self)} samples")
         index = int(index)
         demo_index = index % len(self.demos)
-        action, anchor, goal = self.demos[demo_index]
-        sample = make_sample(
-            action, anchor, goal, self.spec, self.generator(index),
-            self.num_action_points, self.num_anchor_points, self.rotate, self.target_scale,
-        )
-        sample["demo_index"] = torch.tensor(demo_index, dtype=torch.int64)
-        return sample
+        generator = self.generator(index)
+        if self.subsets is None:
+            return self._sample(demo_index, None, generator)
+        j = int(torch.randint(len(self.subsets[demo_index]), (), generator=generator))
+        if self.cached is not None:
+            return dict(self.cached[demo_index][j])
+        return self._sample(demo_index, self.subsets[demo_index][j], generator)
 
 
 __all__ = [

@@ -14,6 +14,7 @@ import numpy as np
 import torch
 
 ModelFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
+LOSSES = ("epsilon", "x0", "v", "min_snr")
 
 
 #################################################################################
@@ -84,8 +85,12 @@ def mean_flat(x: torch.Tensor) -> torch.Tensor:
 class GaussianDiffusion:
     """DDPM forward process, learned-range reverse process, hybrid loss and samplers for a given betas array."""
 
-    def __init__(self, betas: Sequence[float] | np.ndarray, learn_sigma: bool = True, fixed_variance: str = "large"):
+    def __init__(self, betas: Sequence[float] | np.ndarray, learn_sigma: bool = True, fixed_variance: str = "large",
+                 loss: str = "epsilon", min_snr_gamma: float = 5.0):
         betas = np.asarray(betas, dtype=np.float64)
+        if loss not in LOSSES:
+            raise ValueError(f"loss must be one of {', '.join(LOSSES)}, got {loss!r}")
+        self.loss, self.min_snr_gamma = loss, float(min_snr_gamma)
         if betas.ndim != 1 or not ((betas > 0) & (betas <= 1)).all():
             raise ValueError("betas must be a 1-d array in (0, 1]")
         if fixed_variance not in ("large", "small"):
@@ -119,6 +124,8 @@ class GaussianDiffusion:
         self.log_betas = np.log(betas)
         # fixed 'large' variance: beta_t with entry 0 replaced by the posterior variance at 1 (improved-diffusion)
         self.large_variance = np.append(self.posterior_variance[1], betas[1:]) if self.num_timesteps > 1 else betas
+        # SNR(t) = abar_t / (1 - abar_t): the epsilon MSE is SNR(t) times the MSE of the implied x_0
+        self.snr = self.alphas_cumprod / (1.0 - self.alphas_cumprod)
 
     # --- helpers -----------------------------------------------------------------------------------------------
 
@@ -144,7 +151,7 @@ class GaussianDiffusion:
         if isinstance(use_timesteps, int):
             use_timesteps = space_timesteps(self.num_timesteps, use_timesteps)
         spaced = SpacedDiffusion(self.betas, use_timesteps, learn_sigma=self.learn_sigma,
-                                 fixed_variance=self.fixed_variance)
+                                 fixed_variance=self.fixed_variance, loss=self.loss, min_snr_gamma=self.min_snr_gamma)
         spaced.timestep_map = self.timestep_map[spaced.timestep_map]
         return spaced
 
@@ -222,10 +229,19 @@ class GaussianDiffusion:
         nll = mean_flat(nll) / math.log(2.0)
         return torch.where(t == 0, nll, kl)
 
+    def x0_loss_weight(self, t: torch.Tensor) -> torch.Tensor:
+        """w(t) of the mean term, written as w(t) times the MSE of the implied x_0 (Hang et al. 2023, Min-SNR):
+        epsilon: SNR(t) (the epsilon MSE); x0: 1; v: SNR(t) + 1 (the velocity MSE); min_snr: min(SNR(t), gamma)."""
+        snr = torch.from_numpy(self.snr).to(t.device)[t]
+        weights = {"epsilon": snr, "x0": torch.ones_like(snr), "v": snr + 1.0,
+                   "min_snr": snr.clamp(max=self.min_snr_gamma)}
+        return weights[self.loss]
+
     def training_losses(self, model_fn: ModelFn, x_start: torch.Tensor, t: torch.Tensor,
                         noise: torch.Tensor | None = None) -> dict:
         """Hybrid loss of Improved DDPM (REFERENCE.md, Diffusion). Returns per-sample (B,) tensors:
-        "mse" (epsilon MSE, mean over points and channels), "vb" (zeros without learn_sigma) and "loss" = mse + vb.
+        "mse" (the mean term, mean over points and channels), "vb" (zeros without learn_sigma) and "loss" = mse + vb.
+        The mean term is the epsilon MSE (loss "epsilon", the paper's) or x0_loss_weight(t) times the x_0 MSE.
         The VB term sees the predicted mean stop-gradiented, so it trains the variance channels only."""
         if noise is None:
             noise = torch.randn_like(x_start)
@@ -233,7 +249,11 @@ class GaussianDiffusion:
         model_output = self._call_model(model_fn, x_t, t)
         C = x_start.shape[-1]
         eps = model_output[..., :C]
-        mse = mean_flat((noise - eps) ** 2)
+        if self.loss == "epsilon":
+            mse = mean_flat((noise - eps) ** 2)
+        else:
+            x0 = self.predict_xstart_from_eps(x_t, t, eps)
+            mse = self.x0_loss_weight(t).to(x0.dtype) * mean_flat((x_start - x0) ** 2)
         if self.learn_sigma:
             frozen = torch.cat([eps.detach(), model_output[..., C:]], dim=-1)
             vb = self.vb_terms_bpd(frozen, x_start, x_t, t)

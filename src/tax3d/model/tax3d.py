@@ -46,7 +46,8 @@ class Tax3D(nn.Module):
         self.spec = variant_spec(config.model.variant)
         self.net = build_network(config)
         self.learn_sigma = self.spec.diffusion and config.diffusion.learn_sigma
-        self.diffusion = GaussianDiffusion(linear_betas(config.diffusion.num_timesteps), learn_sigma=self.learn_sigma)
+        self.diffusion = GaussianDiffusion(linear_betas(config.diffusion.num_timesteps), learn_sigma=self.learn_sigma,
+                                           loss=config.diffusion.loss)
 
     # --- the network in the variant's frames ---------------------------------------------------------------------
 

@@ -1,0 +1,96 @@
+"""Validation RMSE against wall time: configurations trained side by side for the same minutes, one thread each.
+
+    python benchmarks/time_to_quality.py --minutes 60 --train data/unimodal/train --val data/unimodal/unseen \
+        --run shipped "" --run x0 "--diffusion.loss x0" --out runs/ttq [--validations 12] [--val-demos 20]
+
+Each `--run NAME OPTIONS` is a `tax3d train --preset PRESET --train.minutes M` with its own extra options, started
+at the same moment as the others, so that all see the same machine. The run plans its steps to end after M
+minutes and validates `--validations` times on the first `--val-demos` demos of `--val`, which training never
+sees, with the checkpoint's own sampler and steps (the ones `tax3d predict` uses by default). Prints one JSON
+object, also written to OUT/time_to_quality.json: per run, its options, steps per minute and every validation
+(minutes, step, val_rmse: min over `--val-samples` samples, val_rmse_mean: mean over them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from tax3d import provenance
+from tax3d.atomic import write_text
+from tax3d.train import read_log
+
+
+def train_command(args, name: str, options: str) -> list[str]:
+    return [sys.executable, "-m", "tax3d.cli", "train", "--preset", args.preset, "--out", str(args.out / name),
+            "--data.train", *args.train, "--data.val", *args.val, "--train.minutes", str(args.minutes),
+            "--train.validations", str(args.validations), "--train.val-demos", str(args.val_demos),
+            "--train.val-samples", str(args.val_samples), "--train.threads", "1", *shlex.split(options)]
+
+
+def summary(out: Path, options: str, command: list[str]) -> dict:
+    """One run's curve from its log.jsonl: every validation, and the plan it made."""
+    records = read_log(out / "log.jsonl")
+    plan = next((r["plan"] for r in records if "plan" in r), None)
+    curve = [{"minutes": round(r["seconds"] / 60, 2), "step": r["step"], "val_rmse": r["val_rmse"],
+              "val_rmse_mean": r["val_rmse_mean"]} for r in records if "val_rmse" in r]
+    last = records[-1]
+    config = json.loads((out / "config.json").read_text())
+    return {"options": options, "command": " ".join(shlex.quote(c) for c in command), "config": config, "plan": plan,
+            "steps": last["step"], "minutes": round(last["seconds"] / 60, 2),
+            "steps_per_minute": round(last["step"] / (last["seconds"] / 60), 1), "curve": curve}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, required=True)
+    parser.add_argument("--train", nargs="+", required=True)
+    parser.add_argument("--val", nargs="+", required=True)
+    parser.add_argument("--run", nargs=2, action="append", metavar=("NAME", "OPTIONS"), required=True)
+    parser.add_argument("--out", type=Path, default=Path("runs/time_to_quality"))
+    parser.add_argument("--preset", default="cpu")
+    parser.add_argument("--validations", type=int, default=12)
+    parser.add_argument("--val-demos", type=int, default=20)
+    parser.add_argument("--val-samples", type=int, default=2)
+    args = parser.parse_args()
+    names = [name for name, _ in args.run]
+    if len(set(names)) != len(names):
+        parser.error(f"--run: names must differ, got {names}")
+    if args.minutes <= 0 or args.validations < 1 or args.val_demos < 1:
+        parser.error("--minutes, --validations and --val-demos must be positive")
+    for name in names:
+        if (args.out / name).exists():
+            parser.error(f"--out: {args.out / name} exists; expected a fresh folder for each run")
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    started = time.time()
+    commands = {name: train_command(args, name, options) for name, options in args.run}
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    procs = {}
+    for name, command in commands.items():
+        log = open(args.out / f"{name}.stderr", "w")
+        procs[name] = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=log, env=env)
+    failed = [name for name, proc in procs.items() if proc.wait() != 0]
+    if failed:
+        print(f"time_to_quality: run(s) {', '.join(failed)} failed; see {args.out}/NAME.stderr", file=sys.stderr)
+        return 1
+    result = {
+        "benchmark": "time_to_quality", "minutes": args.minutes, "preset": args.preset, "train": args.train,
+        "val": args.val, "val_demos": args.val_demos, "val_samples": args.val_samples,
+        "machine": provenance.machine(), "date": provenance.today(), "wall_minutes": round((time.time() - started) / 60, 1),
+        "runs": {name: summary(args.out / name, options, commands[name]) for name, options in args.run},
+    }
+    text = json.dumps(result, indent=1)
+    write_text(args.out / "time_to_quality.json", text + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
