@@ -4,7 +4,8 @@
         --run shipped "" --run x0 "--diffusion.loss x0" --out runs/ttq [--validations 12] [--val-demos 20]
 
 Each `--run NAME OPTIONS` is a `tax3d train --preset PRESET --train.minutes M` with its own extra options, started
-at the same moment as the others, so that all see the same machine. The run plans its steps to end after M
+at the same moment as the others and pinned to a core of its own (data workers included), so that all see the
+same machine and none borrows another's core. The run plans its steps to end after M
 minutes and validates `--validations` times on the first `--val-demos` demos of `--val`, which training never
 sees, with the checkpoint's own sampler and steps (the ones `tax3d predict` uses by default). Prints one JSON
 object, also written to OUT/time_to_quality.json: per run, its options, steps per minute and every validation
@@ -72,16 +73,20 @@ def main() -> int:
     started = time.time()
     commands = {name: train_command(args, name, options) for name, options in args.run}
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    cores = sorted(os.sched_getaffinity(0))
     procs = {}
-    for name, command in commands.items():
+    for i, (name, command) in enumerate(commands.items()):
         log = open(args.out / f"{name}.stderr", "w")
-        procs[name] = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=log, env=env)
+        # one core each (with its data worker, if any), so that no run borrows another's core
+        core = {cores[i % len(cores)]}
+        procs[name] = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=log, env=env,
+                                       preexec_fn=lambda core=core: os.sched_setaffinity(0, core))
     failed = [name for name, proc in procs.items() if proc.wait() != 0]
     if failed:
         print(f"time_to_quality: run(s) {', '.join(failed)} failed; see {args.out}/NAME.stderr", file=sys.stderr)
         return 1
     result = {
-        "benchmark": "time_to_quality", "minutes": args.minutes, "preset": args.preset, "train": args.train,
+        "benchmark": "time_to_quality", "cores_per_run": 1 if len(args.run) <= len(cores) else len(cores) / len(args.run), "minutes": args.minutes, "preset": args.preset, "train": args.train,
         "val": args.val, "val_demos": args.val_demos, "val_samples": args.val_samples,
         "machine": provenance.machine(), "date": provenance.today(), "wall_minutes": round((time.time() - started) / 60, 1),
         "runs": {name: summary(args.out / name, options, commands[name]) for name, options in args.run},

@@ -25,8 +25,8 @@ def test_unknown_task_and_split(capsys, tmp_path):
 def test_unwritable_output(capsys, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    assert "is not a folder" in one_line_error(capsys, ["generate", "--num", "1", "--out", str(blocker)])
-    assert "cannot write" in one_line_error(capsys, ["generate", "--num", "1", "--out", str(blocker / "sub")])
+    assert "is a file" in one_line_error(capsys, ["generate", "--num", "1", "--out", str(blocker)])
+    assert "is a file; expected folders" in one_line_error(capsys, ["generate", "--num", "1", "--out", str(blocker / "sub")])
 
 
 def test_bad_numbers(capsys, tmp_path):

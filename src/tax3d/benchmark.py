@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+
 import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from tax3d.atomic import write_text
 from tax3d.errors import UsageError
+from tax3d.options import NonNegative, OutputFolder, Positive
 
 SPLITS = ("train", "unseen", "ood")
 
@@ -21,21 +23,21 @@ class Args:
     task: str = "hangproccloth-simple"
     variants: str = "cd,cp"
     """comma-separated variants: cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd, rp"""
-    out: Path = Path("runs/benchmark")
+    out: Annotated[Path, OutputFolder] = Path("runs/benchmark")
     """output folder: data/<split>, <variant>/train, <variant>/eval, results.md"""
     preset: Literal["cpu", "paper"] = "cpu"
     """training settings and budget; `paper` is the paper's (about 500k steps, a GPU job)"""
-    steps: int | None = None
+    steps: Annotated[int | None, Positive] = None
     """training steps per variant (default: the preset's)"""
-    minutes: float = 0.0
+    minutes: Annotated[float, NonNegative] = 0.0
     """training time limit per variant, in minutes (0: none)"""
-    num_train: int | None = None
+    num_train: Annotated[int | None, Positive] = None
     """training demonstrations (default: the paper's size for the task)"""
-    episodes: int | None = None
+    episodes: Annotated[int | None, Positive] = None
     """evaluation episodes per split (default: the paper's sizes; train: every training demonstration)"""
-    samples: int = 1
+    samples: Annotated[int, Positive] = 1
     """goal samples per evaluation episode (coverage and precision RMSE need several)"""
-    workers: int = 2
+    workers: Annotated[int, Positive] = 2
     """worker processes for generation and evaluation"""
     data: Path | None = None
     """existing demonstrations with one folder per split (default: OUT/data, generated here)"""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 
 import torch.nn as nn
@@ -27,7 +29,28 @@ def check_directory(directory) -> Path:
     return directory
 
 
+def sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def with_weights_hash(config: dict, directory: Path) -> dict:
+    """config.json's dict with the sha256 of the directory's weights file, checked by read_weights."""
+    return {**config, "weights_sha256": sha256(directory / WEIGHTS_NAME)}
+
+
 def read_weights(directory: Path, map_location="cpu") -> dict:
+    """The weights of a checkpoint directory; when its config.json records their sha256, it must match."""
+    try:
+        expected = json.loads((directory / CONFIG_NAME).read_text()).get("weights_sha256")
+    except (OSError, ValueError, AttributeError):
+        expected = None
+    if expected is not None and sha256(directory / WEIGHTS_NAME) != expected:
+        raise CheckpointError(f"{directory / WEIGHTS_NAME}: the file's sha256 differs from the one recorded in "
+                              f"{CONFIG_NAME}; expected the weights saved with it (the file is damaged or replaced)")
     try:
         return load_file(str(directory / WEIGHTS_NAME), device=str(map_location))
     except Exception as err:  # safetensors raises its own error types for corrupt headers

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 import sys
 
+from tax3d import options
 from tax3d.errors import UsageError
 
 COMMANDS = {
@@ -29,7 +30,10 @@ def main(argv: list[str] | None = None) -> int:
     import tyro
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help"):
+    if not argv:
+        print(_usage(), file=sys.stderr)
+        return 2
+    if argv[0] in ("-h", "--help"):
         print(_usage())
         return 0
     name, rest = argv[0], argv[1:]
@@ -39,6 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     module = importlib.import_module(COMMANDS[name][0])
     try:
         args = tyro.cli(module.Args, args=rest, prog=f"tax3d {name}", description=COMMANDS[name][1])
+        options.check(args)
         return int(module.run(args) or 0)
     except UsageError as err:
         print(f"tax3d {name}: error: {err}", file=sys.stderr)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import types
 import typing
 from dataclasses import dataclass, field
 from typing import Annotated, Literal, Optional
@@ -17,6 +18,7 @@ import tyro
 
 from tax3d.data.dataset import variant_spec
 from tax3d.errors import UsageError
+from tax3d.options import Fraction, NonNegative, Positive, problems
 
 
 @dataclass
@@ -25,17 +27,17 @@ class ModelConfig:
 
     variant: str = "cd"
     """cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd or rp (paper Sec. 4; CD-W and cd_w are the same)"""
-    hidden_size: int = 128
-    depth: int = 5
-    num_heads: int = 4
-    mlp_ratio: float = 4.0
+    hidden_size: Annotated[int, Positive] = 128
+    depth: Annotated[int, Positive] = 5
+    num_heads: Annotated[int, Positive] = 4
+    mlp_ratio: Annotated[float, Positive] = 4.0
 
 
 @dataclass
 class DiffusionConfig:
     """The diffusion process (REFERENCE.md, Diffusion) and the default sampler of `predict`."""
 
-    num_timesteps: int = 100
+    num_timesteps: Annotated[int, Positive] = 100
     learn_sigma: bool = True
     prediction: Literal["epsilon", "sample"] = "epsilon"
     """what the network outputs: the noise (the paper) or the clean target x_0, turned into the noise
@@ -43,7 +45,7 @@ class DiffusionConfig:
     loss: Literal["epsilon", "x0", "v", "min_snr"] = "epsilon"
     """the mean term of the loss: the epsilon MSE (the paper's: the x_0 error weighted by SNR(t)), or the x_0 MSE
     weighted by 1 (x0), SNR(t) + 1 (v) or min(SNR(t), 5) (min_snr); docs/training.md measures them"""
-    sample_steps: int = 100
+    sample_steps: Annotated[int, Positive] = 100
     """denoising steps at prediction: fewer than num_timesteps respaces the schedule"""
     sampler: Literal["ddpm", "ddim"] = "ddpm"
 
@@ -56,13 +58,13 @@ class DataConfig:
     """training demo folders (or demo files)"""
     val: tuple[str, ...] = ()
     """validation demo folders; none: no validation and no best checkpoint"""
-    num_action_points: int = 512
-    num_anchor_points: int = 512
-    train_size: int = 400
+    num_action_points: Annotated[int, Positive] = 512
+    num_anchor_points: Annotated[int, Positive] = 512
+    train_size: Annotated[int, Positive] = 400
     """samples per epoch (demos are repeated)"""
-    target_scale: float = 1.0
+    target_scale: Annotated[float, Positive] = 1.0
     """the network's target is the variant's target times this"""
-    subsets: int = 0
+    subsets: Annotated[int, NonNegative] = 0
     """farthest-point subsets sampled once per demo, an item picking one at random (0: sample afresh each time)"""
     rotate: bool = True
     """rotate anchor and goal about z by U(0, 2 pi) in training"""
@@ -74,30 +76,30 @@ class DataConfig:
 class TrainConfig:
     """The optimiser, schedule, validation and bookkeeping of a training run."""
 
-    lr: float = 1e-4
-    weight_decay: float = 1e-5
-    warmup_steps: int = 100
-    batch_size: int = 16
-    grad_clip: float = 1.0
-    steps: int = 500_000
+    lr: Annotated[float, Positive] = 1e-4
+    weight_decay: Annotated[float, NonNegative] = 1e-5
+    warmup_steps: Annotated[int, NonNegative] = 100
+    batch_size: Annotated[int, Positive] = 16
+    grad_clip: Annotated[float, NonNegative] = 1.0
+    steps: Annotated[int, Positive] = 500_000
     seed: int = 42
-    val_every: int = 5000
+    val_every: Annotated[int, Positive] = 5000
     """validate and write last/ every this many steps (and at the end)"""
-    val_samples: int = 5
+    val_samples: Annotated[int, Positive] = 5
     """samples per validation demo for the min-of-samples RMSE"""
-    val_demos: int = 0
+    val_demos: Annotated[int, NonNegative] = 0
     """validate on the first this many val demos (0: all)"""
-    minutes: float = 0.0
+    minutes: Annotated[float, NonNegative] = 0.0
     """plan the run to end after this many minutes on this machine: the step rate measured over the first steps
     fixes train.steps (and so the cosine schedule) then, and the plan is recorded in config.json (0: use steps)"""
-    validations: int = 0
+    validations: Annotated[int, NonNegative] = 0
     """with train.minutes: validate this many times, evenly over the planned steps (0: every val_every steps)"""
-    time_limit: float = 0.0
+    time_limit: Annotated[float, NonNegative] = 0.0
     """stop after this many minutes of training, as if at the last step (0: no limit)"""
-    ema: float = 0.0
+    ema: Annotated[float, Fraction] = 0.0
     """decay of an exponential moving average of the weights (0: off); checkpoints then hold the average"""
-    num_workers: int = 0
-    threads: int = 0
+    num_workers: Annotated[int, NonNegative] = 0
+    threads: Annotated[int, NonNegative] = 0
     """torch CPU threads (0: torch's default)"""
     device: str = "auto"
     """auto (cuda when available), cpu or cuda"""
@@ -143,6 +145,8 @@ def preset(name: str) -> Config:
 
 # --- serialisation ---------------------------------------------------------------------------------------------
 
+METADATA = ("weights_sha256",)
+"""top-level keys of a checkpoint's config.json beside the sections"""
 _SECTIONS = {"model": ModelConfig, "diffusion": DiffusionConfig, "data": DataConfig, "train": TrainConfig}
 
 
@@ -151,10 +155,14 @@ def to_dict(config: Config) -> dict:
 
 
 def from_dict(data: dict, where: str = "config") -> Config:
-    """A Config from its JSON dict; unknown sections or fields are an error naming them."""
+    """A Config from its JSON dict, every section present; unknown sections or fields are an error naming them
+    (a field left out of a section takes its default). Other top-level keys are checkpoint metadata."""
     if not isinstance(data, dict):
         raise UsageError(f"{where}: expected a JSON object with sections {', '.join(_SECTIONS)}")
-    return validate(Config(**parse_sections(data, _SECTIONS, where)), where)
+    missing = [name for name in _SECTIONS if name not in data]
+    if missing:
+        raise UsageError(f"{where}: no '{missing[0]}' section; expected the sections {', '.join(_SECTIONS)}")
+    return validate(Config(**parse_sections(data, _SECTIONS, where, ignore=METADATA)), where)
 
 
 def parse_sections(data: dict, sections: dict, where: str, ignore=()) -> dict:
@@ -169,8 +177,44 @@ def parse_sections(data: dict, sections: dict, where: str, ignore=()) -> dict:
         names = {f.name for f in dataclasses.fields(cls)}
         if set(values) - names:
             raise UsageError(f"{where}: unknown fields {sorted(set(values) - names)} in section '{name}'")
+        hints = typing.get_type_hints(cls)
+        for key, value in values.items():
+            if not _has_type(value, hints[key]):
+                raise UsageError(f"{where}: {name}.{key} is {value!r}; expected {_type_name(hints[key])}")
         out[name] = cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
     return out
+
+
+def _has_type(value, hint) -> bool:
+    """Whether a JSON value fits a field's type (int, float, bool, str, a Literal, a tuple of str)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is Literal:
+        return value in args
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            return False
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(_has_type(v, args[0]) for v in value)
+        return len(value) == len(args) and all(_has_type(v, a) for v, a in zip(value, args))
+    if origin in (typing.Union, types.UnionType):
+        return any(_has_type(value, a) for a in args)
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    return isinstance(value, hint)
+
+
+def _type_name(hint) -> str:
+    if typing.get_origin(hint) is Literal:
+        return "one of " + ", ".join(map(repr, typing.get_args(hint)))
+    if typing.get_origin(hint) is tuple:
+        return "a list" + ("" if typing.get_args(hint)[-1] is Ellipsis else f" of {len(typing.get_args(hint))}")
+    return {int: "an integer", float: "a number", bool: "true or false", str: "a string"}.get(hint, str(hint))
 
 
 def read_json(path) -> dict:
@@ -196,6 +240,9 @@ def load(path) -> Config:
 
 def validate(config: Config, where: str = "config") -> Config:
     """Normalise the variant name and check values that would otherwise fail deep inside training."""
+    for name, value, problem in problems(config):
+        raise UsageError(f"--{name.replace('_', '-')} {value}: {problem}" if where == "options"
+                         else f"{where}: {name} = {value!r}: {problem}")
     config.model.variant = variant_spec(config.model.variant).name
     checks = [
         (config.model.hidden_size % max(config.model.num_heads, 1) == 0 and config.model.num_heads > 0,

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 from tax3d.errors import UsageError
 from tax3d.evaluate import Args as EvalArgs
 from tax3d.evaluate import run as run_eval
+from tax3d.options import OutputFolder, Positive
 
 SHIPPED = Path(__file__).resolve().parents[2] / "checkpoints" / "tax3d-cd-simple"
 
@@ -19,12 +21,12 @@ class Args:
 
     checkpoint: Path = SHIPPED
     """checkpoint directory (default: the one shipped in checkpoints/)"""
-    episodes: int = 6
+    episodes: Annotated[int, Positive] = 6
     """fresh episodes per split (unseen, ood)"""
-    samples: int = 3
+    samples: Annotated[int, Positive] = 3
     """goal samples per episode shown in the report (the policy executes the first)"""
-    workers: int = 2
-    out: Path = Path("out/demo")
+    workers: Annotated[int, Positive] = 2
+    out: Annotated[Path, OutputFolder] = Path("out/demo")
     """output folder: results.json, results.md, report.html, images/"""
 
 

@@ -5,17 +5,19 @@ The environment runner (this module) is separate from the policy it evaluates (`
 
 from __future__ import annotations
 
+
 import json
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 
 from tax3d import provenance
 from tax3d.atomic import write_text
 from tax3d.errors import UsageError
+from tax3d.options import Finite, NonNegative, OutputFolder, Positive
 from tax3d.parallel import check_backend, run_each
 
 SPLIT_FOLDERS = {"train": ("train",), "unseen": ("unseen", "val"), "ood": ("ood", "val_ood")}
@@ -34,17 +36,17 @@ class Args:
     data: Path | None = None
     """folder with a demo sub-folder per split (train, unseen or val, ood): its episodes are replayed and their goals
     scored; a split without a folder gets fresh anchor poses from the split's seeds (success only)"""
-    episodes: int | None = None
+    episodes: Annotated[int | None, Positive] = None
     """episodes per split (default: every demo of the split's folder, or the paper's size)"""
-    samples: int = 1
+    samples: Annotated[int, Positive] = 1
     """goal samples per episode (the policy executes the first); RMSE is their mean, coverage their min"""
-    steps: int | None = None
+    steps: Annotated[int | None, Positive] = None
     """denoising steps (default: the checkpoint's)"""
     sampler: Literal["ddpm", "ddim"] | None = None
     """ddpm or ddim (default: the checkpoint's diffusion.sampler)"""
-    replan_every: int = 0
+    replan_every: Annotated[int, NonNegative] = 0
     """closed loop: predict again every K environment steps (0: open loop, the paper's policy)"""
-    workers: int = 2
+    workers: Annotated[int, Positive] = 2
     """worker processes, each with its own simulator and a copy of the model"""
     backend: Literal["local", "ray"] = "local"
     """local: a process pool on this machine; ray: Ray tasks (a local Ray instance, or the cluster at --address)"""
@@ -52,12 +54,12 @@ class Args:
     """with --backend ray: the address of an existing Ray cluster (default: start a local one)"""
     device: str = "cpu"
     """where each worker's model predicts: cpu, cuda, cuda:K or auto (CUDA when there is one)"""
-    first_index: int = 0
+    first_index: Annotated[int, NonNegative] = 0
     """index of the first fresh episode of each split, for splits without a demo folder"""
     seed: int = 0
-    policy_offset: tuple[float, float, float] | None = None
+    policy_offset: Annotated[tuple[float, float, float] | None, Finite] = None
     """added to the predicted grip-vertex positions to make the gripper targets (default: the task's)"""
-    out: Path = Path("out/eval")
+    out: Annotated[Path, OutputFolder] = Path("out/eval")
     """output folder: results.json, results.md, report.html, images/"""
     report: bool = True
     """write the HTML report"""
@@ -158,10 +160,19 @@ def plan_jobs(args: Args) -> list[EvalJob]:
     task = get_task(args.task)
     if args.episodes is not None and args.episodes < 1:
         raise UsageError(f"--episodes {args.episodes}: expected at least 1 episode per split")
-    if args.data is not None and not args.data.is_dir():
-        raise UsageError(f"--data {args.data}: no such folder; expected one demo folder per split inside it")
+    split_names = [s.strip() for s in args.splits.split(",") if s.strip()]
+    if args.data is not None:
+        if not args.data.is_dir():
+            raise UsageError(f"--data {args.data}: no such folder; expected one demo folder per split inside it")
+        wanted = [name for split_name in split_names for name in SPLIT_FOLDERS[get_split(split_name).name]]
+        if next(args.data.glob("demo_*.npz"), None) is not None:
+            raise UsageError(f"--data {args.data}: holds demo files itself; expected the folder above it, with a "
+                             f"folder per split ({', '.join(dict.fromkeys(wanted))})")
+        if all(_split_folder(args.data, get_split(name).name) is None for name in split_names):
+            raise UsageError(f"--data {args.data}: has none of the folders {', '.join(dict.fromkeys(wanted))}; "
+                             f"expected a demo folder per split inside it")
     jobs = []
-    for split_name in [s.strip() for s in args.splits.split(",") if s.strip()]:
+    for split_name in split_names:
         split = get_split(split_name)
         folder = _split_folder(args.data, split.name)
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
@@ -269,6 +280,8 @@ def evaluate(args: Args, progress: bool = True) -> dict:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
     model = load_model(args.checkpoint, args.device)  # fails early, in one line, on a bad checkpoint or device
     _check_task(model, args)
+    if hasattr(model, "sampling") and model.spec.diffusion:  # TAX3D diffusion variants (not DP3, RD/RP)
+        model.sampling(args.steps, args.sampler, "--")
     jobs = plan_jobs(args)
     results = run_jobs(jobs, args.workers, progress, backend=args.backend, address=args.address)
     splits = list(dict.fromkeys(j.split for j in jobs))

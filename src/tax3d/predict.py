@@ -10,12 +10,13 @@ the command, machine and date.
 
 from __future__ import annotations
 
+
 import json
 import sys
 import time
 from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
-from typing import Literal, Optional
+from typing import Annotated, Literal, Optional
 
 import numpy as np
 import torch
@@ -28,6 +29,7 @@ from tax3d.errors import UsageError
 from tax3d.metrics import MeanGoalBaseline, rmse
 from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
+from tax3d.options import NonNegative, OutputFile, Positive
 
 
 @dataclass
@@ -38,24 +40,24 @@ class Args:
     """checkpoint directory (config.json + model.safetensors)"""
     demos: tuple[str, ...]
     """demo folders or demo_N.npz files"""
-    samples: int = 1
+    samples: Annotated[int, Positive] = 1
     """predictions per demo"""
-    steps: Optional[int] = None
+    steps: Annotated[Optional[int], Positive] = None
     """denoising steps (default: the checkpoint's diffusion.sample_steps)"""
     sampler: Optional[Literal["ddpm", "ddim"]] = None
     """default: the checkpoint's diffusion.sampler"""
     seed: int = 0
-    out: Optional[str] = None
+    out: Annotated[Optional[str], OutputFile] = None
     """npz file for the predictions (written atomically)"""
     variant: Optional[str] = None
     """if given, the checkpoint must be of this variant"""
     baseline: tuple[str, ...] = ()
     """demo folders to fit the mean-goal baseline on (e.g. the training split); its RMSE is printed too"""
-    summary: Optional[str] = None
+    summary: Annotated[Optional[str], OutputFile] = None
     """JSON file for the printed summary, with the command, machine and date beside it (written atomically)"""
-    threads: int = 0
+    threads: Annotated[int, NonNegative] = 0
     """torch CPU threads (0: torch's default)"""
-    batch_scenes: int = 8
+    batch_scenes: Annotated[int, Positive] = 8
     """demos denoised together in one batch"""
     device: str = "cpu"
     """cpu, cuda, cuda:K or auto (CUDA when there is one)"""
@@ -73,6 +75,8 @@ def run(args: Args) -> int:
         torch.set_num_threads(args.threads)
     device = pick_device(args.device)
     model = Tax3D.from_pretrained(args.checkpoint, variant=args.variant, map_location=device)
+    if model.spec.diffusion:
+        model.sampling(args.steps, args.sampler, "--")
     files = demo_files(args.demos)
     demos = [load_demo(path) for path in files]
 

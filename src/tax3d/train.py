@@ -12,6 +12,7 @@ share of every global batch, DistributedDataParallel averages the gradients, and
 
 from __future__ import annotations
 
+
 import copy
 import dataclasses
 import json
@@ -22,7 +23,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import torch
@@ -34,11 +35,13 @@ from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
 from tax3d.atomic import write_text
+from tax3d.checkpoint import read_weights
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
 from tax3d.metrics import min_of_samples_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
+from tax3d.options import OutputFolder
 
 STATE_NAME = "training_state.pt"
 
@@ -47,7 +50,7 @@ STATE_NAME = "training_state.pt"
 class Args:
     """Train a TAX3D variant. Options left out take the preset's value (or, when resuming, the run's)."""
 
-    out: str = "runs/tax3d"
+    out: Annotated[str, OutputFolder] = "runs/tax3d"
     """output folder: config.json, log.jsonl, last/ and best/ checkpoints"""
     preset: Literal["paper", "cpu"] = "paper"
     """paper: the paper's settings (a GPU's work); cpu: settings that learn quickly on a CPU"""
@@ -167,7 +170,12 @@ def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps
 
 
 def save_checkpoint(out: Path, name: str, model: Tax3D, weights: dict, state: dict | None) -> None:
-    """Write OUT/name atomically: a temporary folder beside it, then two renames (the old one kept until then)."""
+    """Write OUT/name atomically: a temporary folder beside it, then two renames (the old one kept until then).
+    Weights that are not all finite are an error, never a checkpoint."""
+    broken = next((k for k, v in weights.items() if v.is_floating_point() and not torch.isfinite(v).all()), None)
+    if broken is not None:
+        raise UsageError(f"--out {out}: weight {broken} is not finite; expected finite weights, "
+                         f"{out / name} is left as it was")
     tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=out))
     tmp.chmod(0o755)
     model.save_pretrained(tmp, state_dict=weights)
@@ -315,7 +323,16 @@ def make_plan(config: cfg.Config, model: Tax3D, ema, val_demos: list[dict], step
 
 def load_state(last: Path, model: Tax3D, optimizer, ema, noise_gen, device) -> tuple[int, float, float]:
     """Restore model, optimizer, EMA and generators from last/; returns step, best and elapsed seconds."""
-    state = torch.load(last / STATE_NAME, map_location=device, weights_only=True)
+    read_weights(last)  # the checkpoint's own weights must be readable too, not only the state
+    try:
+        state = torch.load(last / STATE_NAME, map_location=device, weights_only=True)
+        missing = [k for k in ("model", "optimizer", "step", "best", "elapsed", "noise_rng", "torch_rng")
+                   if k not in state]
+    except Exception as err:  # torch.load raises several types for a truncated or foreign file
+        raise CheckpointError(f"{last / STATE_NAME}: unreadable training state ({str(err).split('. ')[0]}); "
+                              f"expected the file written with {last / 'model.safetensors'}") from None
+    if missing:
+        raise CheckpointError(f"{last / STATE_NAME}: no {missing[0]} in the training state")
     model.load_weights(state["model"], str(last / STATE_NAME))
     optimizer.load_state_dict(state["optimizer"])
     if ema is not None:
@@ -397,6 +414,11 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
         t = model.diffusion.sample_timesteps(c.batch_size, device, noise_gen)[share]
         noise = torch.randn((c.batch_size, *batch["target"].shape[1:]), generator=noise_gen, device=device)[share]
         losses = loss_fn(batch, t, noise)
+        if not torch.isfinite(losses["loss"].detach()):
+            bar.close()
+            raise UsageError(f"--out {out}: the training loss is {float(losses['loss'].detach()):g} at step {step + 1}; "
+                             f"expected a finite loss (lower --train.lr, or check the demos); "
+                             f"the checkpoints there are from before it")
         optimizer.zero_grad(set_to_none=True)
         losses["loss"].backward()
         if c.grad_clip > 0:

@@ -19,6 +19,8 @@ OBJECT_KEYS = ("deform_params", "anchors")
 REQUIRED_KEYS = ARRAY_KEYS + OBJECT_KEYS
 # deform_params of a HangBag demo: the procedural bag's sizes (tax3d.sim.bag.BagParams).
 BAG_KEYS = frozenset({"width", "depth", "height", "handle_gap", "handle_rise", "strap", "spacing", "handle_segments"})
+# Coordinates of a scene are tens of units; values beyond this are a broken file, and would overflow in training.
+MAX_COORDINATE = 1e6
 # Optional per-step trajectory arrays written by `tax3d generate --trajectories` (for the DP3 baseline).
 TRAJECTORY_PREFIX = "traj_"
 
@@ -54,13 +56,27 @@ def _scalar(dtype, data=None):
     return np.frombuffer(data, dtype=dtype)[0]
 
 
+def _read_header(f):
+    version = np.lib.format.read_magic(f)
+    if version == (1, 0):
+        return np.lib.format.read_array_header_1_0(f)
+    return np.lib.format.read_array_header_2_0(f)
+
+
+def _read_array(zf: zipfile.ZipFile, key: str) -> np.ndarray:
+    """A plain array member, after checking that its header's size fits the bytes stored."""
+    with zf.open(key + ".npy") as f:
+        shape, _, dtype = _read_header(f)
+        stored = zf.getinfo(key + ".npy").file_size - f.tell()
+        if dtype.hasobject or int(np.prod(shape, dtype=np.float64)) * dtype.itemsize > stored:
+            raise DemoError(f"{key} claims shape {shape} of {dtype} but holds {stored} bytes")
+        f.seek(0)
+        return np.lib.format.read_array(f, allow_pickle=False)
+
+
 def _read_object(zf: zipfile.ZipFile, key: str):
     with zf.open(key + ".npy") as f:
-        version = np.lib.format.read_magic(f)
-        if version == (1, 0):
-            shape, _, dtype = np.lib.format.read_array_header_1_0(f)
-        else:
-            shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+        shape, _, dtype = _read_header(f)
         if dtype.hasobject:
             value = _PlainUnpickler(io.BytesIO(f.read())).load()
             if isinstance(value, np.ndarray) and value.shape == ():
@@ -99,10 +115,11 @@ def load_demo(path: str | os.PathLike) -> dict:
                 if key in OBJECT_KEYS:
                     demo[key] = _to_plain(_read_object(zf, key))
                 else:
-                    with zf.open(key + ".npy") as f:
-                        demo[key] = np.lib.format.read_array(f, allow_pickle=False)
-    except DemoError:
-        raise
+                    demo[key] = _read_array(zf, key)
+    except DemoError as err:
+        raise DemoError(f"{path}: {err}" if not str(err).startswith(str(path)) else str(err)) from None
+    except (RecursionError, MemoryError):
+        raise DemoError(f"{path}: unreadable demonstration file (nested or sized beyond what a demo holds)") from None
     except (zipfile.BadZipFile, pickle.UnpicklingError, ValueError, OSError, EOFError) as err:
         raise DemoError(f"{path}: unreadable demonstration file ({err})") from None
     validate_demo(demo, path)
@@ -122,8 +139,12 @@ def validate_demo(demo: dict, path: str | os.PathLike = "<demo>") -> None:
         if not isinstance(value, np.ndarray) or value.shape != shape:
             raise DemoError(f"{path}: {key} has shape {getattr(value, 'shape', None)}; expected {shape}")
     for key in ("action_pc", "anchor_pc", "flow", "rot", "trans"):
+        if demo[key].dtype.kind not in "fiu":
+            raise DemoError(f"{path}: {key} has dtype {demo[key].dtype}; expected real numbers")
         if not np.all(np.isfinite(demo[key])):
             raise DemoError(f"{path}: {key} contains NaN or infinite values")
+        if np.abs(demo[key]).max(initial=0.0) > MAX_COORDINATE:
+            raise DemoError(f"{path}: {key} has values beyond {MAX_COORDINATE:g}; expected scene coordinates")
     params = demo.get("deform_params")
     if not (isinstance(params, dict) and BAG_KEYS <= set(params)):  # a bag's sizes are checked when it is built
         _validate_cloth_dict(params, path)

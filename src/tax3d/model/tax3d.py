@@ -17,9 +17,9 @@ import torch.nn as nn
 from safetensors.torch import save_file
 
 from tax3d import config as cfg
-from tax3d.atomic import atomic_write
+from tax3d.atomic import atomic_write, write_text
 from tax3d.checkpoint import (CONFIG_NAME, WEIGHTS_NAME, CheckpointError, check_directory, load_checked,
-                              read_weights)
+                              read_weights, with_weights_hash)
 from tax3d.data.dataset import frame_inputs, to_world, variant_spec
 from tax3d.errors import UsageError
 from tax3d.geometry import farthest_point_sample
@@ -89,15 +89,16 @@ class Tax3D(nn.Module):
         losses = self.diffusion.training_losses(self.model_fn(action, anchor), target, t, noise)
         return {k: v.mean() for k, v in losses.items()}
 
-    def sampling(self, steps: int | None, sampler: str | None) -> tuple[int, str]:
-        """The number of steps and the sampler to use (the config's by default), checked."""
-        steps = self.config.diffusion.sample_steps if steps is None else int(steps)
+    def sampling(self, steps: int | None, sampler: str | None, prefix: str = "") -> tuple[int, str]:
+        """The number of steps and the sampler to use (the config's by default), checked; errors name the
+        arguments with `prefix` ("--" for the command line)."""
+        steps = self.config.diffusion.sample_steps if steps is None else _whole(steps, "steps")
         sampler = self.config.diffusion.sampler if sampler is None else sampler
         T = self.diffusion.num_timesteps
         if not 1 <= steps <= T:
-            raise UsageError(f"--steps {steps}: expected a number of denoising steps in [1, {T}]")
+            raise UsageError(f"{prefix}steps {steps}: expected a number of denoising steps in [1, {T}]")
         if sampler not in ("ddpm", "ddim"):
-            raise UsageError(f"--sampler {sampler!r}: expected ddpm or ddim")
+            raise UsageError(f"{prefix}sampler {sampler!r}: expected ddpm or ddim")
         return steps, sampler
 
     @torch.no_grad()
@@ -128,7 +129,13 @@ class Tax3D(nn.Module):
         return next(self.parameters()).device
 
     def _points(self, points, name: str) -> torch.Tensor:
-        points = torch.as_tensor(np.asarray(points) if not isinstance(points, torch.Tensor) else points)
+        if not isinstance(points, torch.Tensor):
+            points = np.asarray(points)
+            if points.dtype.kind not in "fiu":
+                raise TypeError(f"{name} has dtype {points.dtype}; expected real numbers")
+        elif points.is_complex() or points.dtype == torch.bool:
+            raise TypeError(f"{name} has dtype {points.dtype}; expected real numbers")
+        points = torch.as_tensor(points)
         if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] == 0:
             raise UsageError(f"{name} has shape {tuple(points.shape)}; expected (N, 3) with N > 0")
         if not torch.isfinite(points).all():
@@ -163,6 +170,9 @@ class Tax3D(nn.Module):
         N, 3). `seed` makes a fresh generator; `generator` is used as given.
         """
         as_numpy = not isinstance(action_points, torch.Tensor)
+        num_samples = _positive(num_samples, "num_samples")
+        if self.spec.diffusion:
+            self.sampling(steps, sampler)
         generator = self._generator(generator, seed)
         frames = self._frames(action_points, anchor_points, generator)
         out = self.sample(frames["action"].expand(num_samples, -1, -1), frames["anchor"].expand(num_samples, -1, -1),
@@ -182,6 +192,7 @@ class Tax3D(nn.Module):
         Scenes with the same number of action points are denoised together, batch_scenes at a time."""
         from tqdm.auto import tqdm
 
+        num_samples, batch_scenes = _positive(num_samples, "num_samples"), _positive(batch_scenes, "batch_scenes")
         if self.spec.diffusion:
             self.sampling(steps, sampler)
         generator = self._generator(None, seed)
@@ -211,7 +222,8 @@ class Tax3D(nn.Module):
         state = state_dict if state_dict is not None else self.net.state_dict()
         state = {k: v.detach().to("cpu").contiguous() for k, v in state.items()}
         atomic_write(directory / WEIGHTS_NAME, lambda path: save_file(state, str(path), metadata={"format": "pt"}))
-        atomic_write(directory / CONFIG_NAME, lambda path: cfg.save(self.config, path))
+        config = with_weights_hash(cfg.to_dict(self.config), directory)
+        write_text(directory / CONFIG_NAME, json.dumps(config, indent=2) + "\n")
 
     @classmethod
     def from_pretrained(cls, directory, variant: str | None = None, map_location="cpu") -> "Tax3D":
@@ -228,6 +240,19 @@ class Tax3D(nn.Module):
     def load_weights(self, state: dict, where: str = "weights") -> None:
         """Load a network state dict, with a one-line error when it does not fit this configuration."""
         load_checked(self.net, state, where)
+
+
+def _whole(value, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} is {value!r}; expected an integer")
+    return int(value)
+
+
+def _positive(value, name: str) -> int:
+    value = _whole(value, name)
+    if value < 1:
+        raise ValueError(f"{name} is {value}; expected a positive integer")
+    return value
 
 
 def read_config(directory) -> dict:

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+
 import math
 import sys
 import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from tax3d.sim.bag import parse_bag_params
 from tax3d.sim.cloth import validate_cloth_params
 from tax3d.sim.env import process_env
 from tax3d.sim.tasks import episode_params, get_split, get_task
+from tax3d.options import OutputFolder, Positive
 
 
 @dataclass
@@ -29,11 +31,11 @@ class Args:
     the files come from)"""
     split: str = "train"
     """train, unseen or ood (out-of-distribution anchor poses)"""
-    num: int | None = None
+    num: Annotated[int | None, Positive] = None
     """number of demonstrations (with --replay: the first NUM files); default: the paper's size, or all files"""
-    out: Path = Path("data/demos")
+    out: Annotated[Path, OutputFolder] = Path("data/demos")
     """output folder for demo_N.npz files"""
-    workers: int = 1
+    workers: Annotated[int, Positive] = 1
     """worker processes, each with its own PyBullet world and temporary mesh folder"""
     backend: Literal["local", "ray"] = "local"
     """local: a process pool on this machine; ray: Ray tasks (a local Ray instance, or the cluster at --address)"""
@@ -41,17 +43,17 @@ class Args:
     """with --backend ray: the address of an existing Ray cluster (default: start a local one)"""
     replay: Path | None = None
     """re-run the cloth parameters and anchor poses of the demo files in this folder"""
-    max_attempts: int = 5
+    max_attempts: Annotated[int, Positive] = 5
     """an index whose expert episode fails is resampled up to this many times"""
     trajectories: bool = False
     """also store per-step gripper positions, velocities, targets and downsampled clouds (traj_* keys)"""
     render: Literal["none", "png", "gif"] = "none"
     """write pictures of each episode under OUT/renders"""
-    render_every: int = 10
+    render_every: Annotated[int, Positive] = 10
     """environment steps between rendered frames"""
     floor: bool = True
     """a floor plane at z = 0 (replay decides this per file from its anchor cloud)"""
-    steps: int = 300
+    steps: Annotated[int, Positive] = 300
     """environment steps of manipulation per episode (the paper's episodes: 300)"""
 
 
