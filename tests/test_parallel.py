@@ -63,3 +63,29 @@ def test_ray_generates_the_same_demos_as_the_local_backend(tmp_path):
         assert a["deform_params"] == b["deform_params"]
         for key in ("action_pc", "anchor_pc", "flow", "rot", "trans"):
             np.testing.assert_array_equal(a[key], b[key])
+
+
+def sleep_then_write(job):
+    """A job: sleep, then write a file (as a demonstration would be written)."""
+    import time
+    from pathlib import Path
+
+    seconds, path = job
+    time.sleep(seconds)
+    Path(path).write_text("done")
+    return path
+
+
+def test_an_interrupt_stops_the_pool_at_once(tmp_path):
+    """Ctrl-C (a KeyboardInterrupt in the loop) ends the workers within seconds: no job runs or writes after it."""
+    import time
+
+    jobs = [(0.0, tmp_path / "first")] + [(3.0, tmp_path / f"late_{i}") for i in range(6)]
+    steps = run_each(sleep_then_write, jobs, workers=2)
+    next(steps)
+    started = time.time()
+    with pytest.raises(KeyboardInterrupt):
+        steps.throw(KeyboardInterrupt)
+    assert time.time() - started < 2.0
+    time.sleep(3.5)  # long enough for a surviving worker to finish its job and write
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["first"]

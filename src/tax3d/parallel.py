@@ -45,7 +45,8 @@ def run_each(fn: Callable, jobs: Sequence, workers: int = 1, backend: str = "loc
             except Exception as err:
                 yield i, None, err
     else:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        try:
             futures = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
             for future in as_completed(futures):
                 try:
@@ -54,6 +55,20 @@ def run_each(fn: Callable, jobs: Sequence, workers: int = 1, backend: str = "loc
                     yield futures[future], None, RuntimeError("worker process died")
                 except Exception as err:
                     yield futures[future], None, err
+        except BaseException:  # Ctrl-C, or the caller stopped early: no job may go on behind its back
+            stop(pool)
+            raise
+        pool.shutdown(wait=True)
+
+
+def stop(pool: ProcessPoolExecutor) -> None:
+    """End a pool at once: drop the jobs not started and terminate the workers, waiting until they are gone."""
+    processes = list((pool._processes or {}).values())  # the executor offers no public handle on its workers
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(timeout=5)
 
 
 def _call(fn: Callable, job):
