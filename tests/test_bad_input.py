@@ -231,3 +231,14 @@ def test_the_package_front_door():
 
     assert tax3d.Tax3D is Tax3D
     from tax3d import Tax3D as FrontDoor  # noqa: F401
+
+
+def test_commands_are_quiet():
+    """No pybullet banner on any command; --help prints help alone."""
+    import subprocess
+    import sys
+
+    for argv in (["-c", "import tax3d.sim.env, tax3d.sim.generate"], ["-m", "tax3d.cli", "generate", "--help"]):
+        done = subprocess.run([sys.executable, *argv], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0 and "pybullet build time" not in done.stdout + done.stderr
+    assert done.stdout.startswith("usage: tax3d generate") and done.stderr == ""

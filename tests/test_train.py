@@ -216,3 +216,16 @@ def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeyp
     assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
                  "--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]) == 0
     assert read_log(out)[-1]["step"] == 60
+
+
+def test_default_preset_fits_the_machine_and_long_runs_are_told(tmp_path, demos, capsys, monkeypatch):
+    monkeypatch.setattr(train, "LONG_RUN_HOURS", 0.0)
+    args = [a for a in TINY if a not in ("--preset", "cpu")]
+    assert main(["train", *args, "--out", str(tmp_path / "run"), "--data.train", str(demos),
+                 "--train.steps", "30", "--train.val_every", "30"]) == 0
+    err = capsys.readouterr().err
+    expected = "paper" if torch.cuda.is_available() else "cpu"
+    assert f"--preset not given: using {expected}" in err
+    assert "note: 30 steps at this machine's rate take about" in err
+    assert f"trained 30 steps in" in err and "weights in" in err  # the closing line
+    assert cfg.load(tmp_path / "run" / "config.json").train.lr == cfg.preset(expected).train.lr

@@ -23,7 +23,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Literal, Optional
 
 import numpy as np
 import torch
@@ -44,6 +44,7 @@ from tax3d.model.tax3d import CheckpointError, Tax3D
 from tax3d.options import OutputFolder
 
 STATE_NAME = "training_state.pt"
+LONG_RUN_HOURS = 12  # a run planned longer than this is told so at its start
 
 
 @dataclass
@@ -52,8 +53,9 @@ class Args:
 
     out: Annotated[str, OutputFolder] = "runs/tax3d"
     """output folder: config.json, log.jsonl, last/ and best/ checkpoints"""
-    preset: Literal["paper", "cpu"] = "paper"
-    """paper: the paper's settings (a GPU's work); cpu: settings that learn quickly on a CPU"""
+    preset: Optional[Literal["paper", "cpu"]] = None
+    """paper: the paper's settings (a GPU's work); cpu: settings that learn quickly on a CPU; default: paper where
+    CUDA is available, else cpu"""
     resume: bool = False
     """require a checkpoint in OUT/last to continue from (without it, one is used when present)"""
     model: cfg.ModelOverrides = field(default_factory=cfg.ModelOverrides)
@@ -219,7 +221,7 @@ def truncate_log(path: Path, step: int) -> None:
 def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.Config:
     overrides = dict(model=args.model, diffusion=args.diffusion, data=args.data, train=args.train)
     if last is None:
-        return cfg.validate(cfg.apply_overrides(cfg.preset(args.preset), **overrides), "options")
+        return cfg.validate(cfg.apply_overrides(cfg.preset(default_preset(args.preset)), **overrides), "options")
     saved = cfg.load(last / "config.json")
     config = cfg.validate(cfg.apply_overrides(copy.deepcopy(saved), **overrides), "options")
     for section in ("model", "diffusion"):
@@ -230,6 +232,16 @@ def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.Config:
                                   f"{section}.{changed[0]} = {getattr(getattr(saved, section), changed[0])!r}; "
                                   f"use another --out to train a different model")
     return config
+
+
+def default_preset(name: str | None) -> str:
+    """The preset asked for, or the one that fits this machine: paper with a GPU, cpu without (said on stderr)."""
+    if name is not None:
+        return name
+    name = "paper" if torch.cuda.is_available() else "cpu"
+    print(f"--preset not given: using {name} ({'a CUDA GPU is' if name == 'paper' else 'no CUDA GPU is'} "
+          f"available)", file=sys.stderr)
+    return name
 
 
 def pick_device(name: str) -> torch.device:
@@ -401,7 +413,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     model.train()
     started = time.time() - elapsed
     share = world.share(c.batch_size)
-    planning = c.minutes > 0 and step < plan_step(c)
+    planning = step < plan_step(c)  # a --train.minutes run plans its steps then; any other run checks its length
     rate_from = None  # (step, time) from which the step rate is measured: after the first, slower steps
     while step < c.steps:
         if planning and rate_from is None and step >= min(5, plan_step(c) - 1):
@@ -435,6 +447,12 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
         out_of_time = c.time_limit > 0 and time.time() - started > 60 * c.time_limit
         values, out_of_time = mean_losses(world, losses, out_of_time)
         record = {"step": step, **values, "lr": lr}
+        if planning and step == plan_step(c) and c.minutes == 0:
+            planning = False
+            hours = (c.steps - step) * (time.time() - rate_from[1]) / (step - rate_from[0]) / 3600
+            if world.main and hours > LONG_RUN_HOURS:
+                print(f"note: {c.steps} steps at this machine's rate take about {hours:.0f} hours; "
+                      f"--train.minutes M plans a run that ends after M minutes", file=sys.stderr)
         if planning and step == plan_step(c):
             planning = False
             record["plan"] = make_plan(config, model, ema, val_demos, step, time.time() - started,
