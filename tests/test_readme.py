@@ -1,0 +1,62 @@
+"""The README's command block runs as written, in order, in a fresh folder: only the sizes are made tiny.
+
+Each `tax3d` call of the block goes through a shell function that appends options for a tiny run (one episode, a
+few steps, a small network); options given later win, so the README's own options are all exercised."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TINY = {
+    "generate": "--num 1 --workers 1",
+    "train": "--train.steps 2 --train.val-every 2 --train.val-demos 1 --model.hidden-size 16 --model.depth 1 "
+             "--data.num-action-points 32 --data.num-anchor-points 32 --train.num-workers 0",
+    "predict": "--steps 2",
+    "eval": "--episodes 1 --workers 1 --steps 2 --no-report",
+    "benchmark": "--num-train 1 --episodes 1 --steps 2 --workers 1",
+    "train-dp3": "--steps 2 --batch-size 2",
+}
+
+
+def readme_block() -> str:
+    text = (ROOT / "README.md").read_text()
+    match = re.search(r"## Commands\n\n```bash\n(.*?)```", text, re.S)
+    assert match, "README.md has no ## Commands bash block"
+    return match.group(1)
+
+
+def test_every_command_of_the_block_has_a_tiny_size():
+    commands = set(re.findall(r"\btax3d ([a-z0-9-]+)", readme_block()))
+    assert commands and commands <= set(TINY), commands - set(TINY)
+    assert "generate" in commands and "train" in commands and "eval" in commands
+
+
+@pytest.mark.slow
+def test_readme_commands_run_as_written(tmp_path):
+    block = readme_block().replace(". .venv/bin/activate\n", "")
+    cases = "\n".join(f"        {name}) extra='{options}' ;;" for name, options in TINY.items())
+    script = f"""set -euo pipefail
+tax3d() {{
+    local extra=""
+    case "$1" in
+{cases}
+    esac
+    command tax3d "$@" $extra
+}}
+{block}
+test -f runs/cd/pred.json && test -d runs/cd/best && test -f out/eval/results.json
+test -f runs/benchmark/results.md && test -d runs/dp3/last
+"""
+    bin_dir = Path(sys.executable).parent
+    env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}", "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(["bash", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
