@@ -21,7 +21,7 @@ def tiny_config(variant: str = "cd", **data) -> cfg.Config:
     config = cfg.Config(
         model=cfg.ModelConfig(variant=variant, hidden_size=16, depth=1, num_heads=2),
         diffusion=cfg.DiffusionConfig(num_timesteps=100, sample_steps=5),
-        data=cfg.DataConfig(num_action_points=16, num_anchor_points=24, **data),
+        data=cfg.DataConfig(**{"num_action_points": 32, "num_anchor_points": 24, **data}),
     )
     return cfg.validate(config)
 
@@ -275,3 +275,26 @@ def test_mean_goal_baseline_random_cloths():
     assert 0.0 < np.abs(lone - (grid[12] * 0.5 + 1.0)).sum() <= 0.25 + 1e-9
     with pytest.raises(ValueError):
         MeanGoalBaseline.fit([])
+
+
+@pytest.mark.parametrize("variant", ["cd", "cp"])
+def test_large_clouds_run_the_network_on_a_sample_and_carry_its_displacements(variant):
+    """Above max_points the network sees a farthest-point sample; every input point keeps its place in the output
+    and moves by the displacement of its nearest sampled point."""
+    model = tiny_model(variant)
+    action, anchor, _ = scene(0, n=200)
+    goals = model.predict(action, anchor, num_samples=2, seed=4, max_points=20)
+    assert goals.shape == (2, 200, 3) and np.isfinite(goals).all()
+    displacement = goals[0] - action
+    close = np.linalg.norm(displacement[:, None] - displacement[None], axis=-1) < 1e-3
+    groups = {int(np.argmax(row)) for row in close}  # the first point of each group of equal displacements
+    assert len(groups) == 20  # twenty sampled points, each lending its displacement to its neighbours
+    # each group is a neighbourhood: its points lie nearer to each other than to most of the cloud
+    spread = np.mean([np.linalg.norm(action[close[g]] - action[close[g]].mean(0), axis=1).mean() for g in groups])
+    assert spread < 0.5 * np.linalg.norm(action - action.mean(0), axis=1).mean()
+    # no limit: the network sees every point (its training size by default)
+    whole = model.predict(action, anchor, seed=4, max_points=0)
+    np.testing.assert_allclose(whole, model.predict(action, anchor, seed=4, max_points=200), atol=1e-5)
+    assert len(np.unique((whole[0] - action).round(3), axis=0)) > 150
+    with pytest.raises(ValueError, match="max_points"):
+        model.predict(action, anchor, max_points=-1)

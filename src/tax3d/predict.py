@@ -57,6 +57,9 @@ class Args:
     """JSON file for the printed summary, with the command, machine and date beside it (written atomically)"""
     threads: Annotated[int, NonNegative] = 0
     """torch CPU threads (0: torch's default)"""
+    max_points: Annotated[Optional[int], NonNegative] = None
+    """the network runs on at most this many action points, the others taking the displacement of their nearest
+    one (default: the number it was trained on; 0: every point)"""
     batch_scenes: Annotated[int, Positive] = 8
     """demos denoised together in one batch"""
     device: str = "cpu"
@@ -83,6 +86,7 @@ def run(args: Args) -> int:
     started = time.time()
     scenes = [(d["action_pc"], d["anchor_pc"]) for d in demos]
     goals = model.predict_scenes(scenes, num_samples=args.samples, steps=args.steps, sampler=args.sampler,
+                                 max_points=args.max_points,
                                  seed=args.seed, batch_scenes=args.batch_scenes, progress=True)
     seconds = time.time() - started
     errors = np.stack([rmse(g, d["action_pc"] + d["flow"]) for g, d in zip(goals, demos)])  # (D, K)

@@ -129,7 +129,7 @@ class EpochItems(Dataset):
 def plan_step(c: cfg.TrainConfig) -> int:
     """The step after which a --train.minutes run fixes its step count: inside the warm-up, where the learning
     rate does not depend on the total."""
-    return max(6, min(25, c.warmup_steps))
+    return max(12, min(100, c.warmup_steps))
 
 
 def plan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: float, val_seconds: float) -> tuple[int, int]:
@@ -160,7 +160,7 @@ def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps
     was_training = model.training
     model.eval()
     scenes = [(d["action_pc"], d["anchor_pc"]) for d in demos]
-    predictions = model.predict_scenes(scenes, num_samples=num_samples, steps=steps, seed=seed)
+    predictions = model.predict_scenes(scenes, num_samples=num_samples, steps=steps, seed=seed, max_points=0)
     model.train(was_training)
     goals = [d["action_pc"] + d["flow"] for d in demos]
     best = [float(min_of_samples_rmse(p, g)) for p, g in zip(predictions, goals)]
@@ -416,7 +416,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     planning = step < plan_step(c)  # a --train.minutes run plans its steps then; any other run checks its length
     rate_from = None  # (step, time) from which the step rate is measured: after the first, slower steps
     while step < c.steps:
-        if planning and rate_from is None and step >= min(5, plan_step(c) - 1):
+        if planning and rate_from is None and step >= min(10, plan_step(c) - 1):
             rate_from = (step, time.time())
         batch = {k: v.to(device) for k, v in next(batches).items()}
         lr = get_lr(step, c)

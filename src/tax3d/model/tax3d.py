@@ -15,6 +15,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 from safetensors.torch import save_file
+from scipy.spatial import cKDTree
 
 from tax3d import config as cfg
 from tax3d.atomic import atomic_write, write_text
@@ -103,7 +104,7 @@ class Tax3D(nn.Module):
 
     @torch.no_grad()
     def sample(self, action: torch.Tensor, anchor: torch.Tensor, steps: int | None = None, sampler: str | None = None,
-               generator: torch.Generator | None = None, return_trajectory: bool = False):
+               generator: torch.Generator | None = None, return_trajectory: bool = False, progress: bool = False):
         """Model outputs (B, N, 3) in the variant's frame for inputs in that frame (B, N, 3), (B, M, 3).
 
         With return_trajectory, also (S + 1, B, N, 3): x_T, ..., x_0 (one entry for RD/RP)."""
@@ -117,7 +118,7 @@ class Tax3D(nn.Module):
         shape = (action.shape[0], n, 3)
         loop = diffusion.p_sample_loop if sampler == "ddpm" else diffusion.ddim_sample_loop
         out = loop(self.model_fn(action, anchor), shape, generator=generator, device=action.device,
-                   return_trajectory=return_trajectory)
+                   progress=progress, return_trajectory=return_trajectory)
         if return_trajectory:
             return out[0][:, : action.shape[1]], out[1][:, :, : action.shape[1]]
         return out[:, : action.shape[1]]
@@ -142,14 +143,34 @@ class Tax3D(nn.Module):
             raise UsageError(f"{name} contains NaN or infinite values")
         return points.to(device=self.device, dtype=torch.float32)
 
-    def _frames(self, action_points, anchor_points, generator: torch.Generator) -> dict:
+    def _frames(self, action_points, anchor_points, generator: torch.Generator, max_points: int | None = None) -> dict:
+        """The network's inputs for one scene. An action cloud of more than max_points (default: the training
+        size; 0: no limit) is farthest-point sampled to it; "carry" then maps each input point to its nearest
+        sampled point, whose predicted displacement it takes (`_carry`)."""
         action = self._points(action_points, "action_points")
         anchor = self._points(anchor_points, "anchor_points")
         k = self.config.data.num_anchor_points
         if anchor.shape[0] > k:
             anchor = anchor[farthest_point_sample(anchor, k, start=generator)]
+        limit = self.config.data.num_action_points if max_points is None else max_points
+        carry = None
+        if 0 < limit < action.shape[0] and not self.spec.scene:
+            full = action
+            action = action[farthest_point_sample(action, limit, start=generator)]
+            _, nearest = cKDTree(action.cpu().numpy()).query(full.cpu().numpy())
+            carry = {"full": full, "sampled": action, "nearest": torch.as_tensor(nearest, device=full.device)}
         frames = frame_inputs(action.double(), anchor.double(), self.spec)
-        return {key: value.float() for key, value in frames.items()}
+        frames = {key: value.float() for key, value in frames.items()}
+        return {**frames, "carry": carry} if carry is not None else frames
+
+    @staticmethod
+    def _carry(goals: torch.Tensor, carry: dict | None) -> torch.Tensor:
+        """World goals (..., k, 3) of the sampled points -> (..., N, 3) for every input point: each point moves by
+        the displacement of its nearest sampled point."""
+        if carry is None:
+            return goals
+        displacement = goals - carry["sampled"]
+        return carry["full"] + displacement[..., carry["nearest"], :]
 
     def _generator(self, generator: torch.Generator | None, seed: int | None) -> torch.Generator:
         if generator is not None:
@@ -161,42 +182,54 @@ class Tax3D(nn.Module):
     @torch.no_grad()
     def predict(self, action_points, anchor_points, num_samples: int = 1, steps: int | None = None,
                 sampler: str | None = None, generator: torch.Generator | None = None, seed: int | None = None,
-                return_trajectory: bool = False):
+                return_trajectory: bool = False, max_points: int | None = None, progress: bool = False):
         """World-frame goal clouds (num_samples, N, 3) for action (N, 3) and anchor (M, 3) world points.
 
-        Any N works (the whole cloth, as in policy evaluation); the anchor is downsampled by FPS to the trained
+        Any N works, and the goal keeps the order of the action points. The network runs on at most
+        `max_points` of them (default: the number it was trained on; 0: all), farthest-point sampled; every other
+        point takes the displacement of its nearest sampled point. The anchor is downsampled by FPS to the trained
         number of points. The samples are denoised together, in one batch. numpy in, numpy out; tensors in,
         tensors out. With return_trajectory, also the denoising trajectory in the world frame, (S + 1, num_samples,
-        N, 3). `seed` makes a fresh generator; `generator` is used as given.
+        N, 3). `seed` makes a fresh generator; `generator` is used as given. `progress` shows a bar over the
+        denoising steps.
         """
         as_numpy = not isinstance(action_points, torch.Tensor)
         num_samples = _positive(num_samples, "num_samples")
         if self.spec.diffusion:
             self.sampling(steps, sampler)
+        if max_points is not None:
+            max_points = _whole(max_points, "max_points")
+            if max_points < 0:
+                raise ValueError(f"max_points is {max_points}; expected 0 (no limit) or a positive integer")
         generator = self._generator(generator, seed)
-        frames = self._frames(action_points, anchor_points, generator)
+        frames = self._frames(action_points, anchor_points, generator, max_points)
+        carry = frames.pop("carry", None)
         out = self.sample(frames["action"].expand(num_samples, -1, -1), frames["anchor"].expand(num_samples, -1, -1),
-                          steps, sampler, generator, return_trajectory)
+                          steps, sampler, generator, return_trajectory, progress)
         scale = self.config.data.target_scale
         if return_trajectory:
-            goals, trajectory = to_world(out[0], frames, self.spec, scale), to_world(out[1], frames, self.spec, scale)
+            goals = self._carry(to_world(out[0], frames, self.spec, scale), carry)
+            trajectory = self._carry(to_world(out[1], frames, self.spec, scale), carry)
             return (goals.cpu().numpy(), trajectory.cpu().numpy()) if as_numpy else (goals, trajectory)
-        goals = to_world(out, frames, self.spec, scale)
+        goals = self._carry(to_world(out, frames, self.spec, scale), carry)
         return goals.cpu().numpy() if as_numpy else goals
 
     @torch.no_grad()
     def predict_scenes(self, scenes, num_samples: int = 1, steps: int | None = None, sampler: str | None = None,
-                       seed: int = 0, batch_scenes: int = 8, progress: bool = False) -> list[np.ndarray]:
+                       seed: int = 0, batch_scenes: int = 8, progress: bool = False,
+                       max_points: int | None = None) -> list[np.ndarray]:
         """predict for many (action_points, anchor_points) scenes: a list of (num_samples, N_i, 3) numpy arrays.
 
-        Scenes with the same number of action points are denoised together, batch_scenes at a time."""
+        Scenes with the same number of network points are denoised together, batch_scenes at a time; max_points
+        as in `predict`."""
         from tqdm.auto import tqdm
 
         num_samples, batch_scenes = _positive(num_samples, "num_samples"), _positive(batch_scenes, "batch_scenes")
         if self.spec.diffusion:
             self.sampling(steps, sampler)
         generator = self._generator(None, seed)
-        frames = [self._frames(action, anchor, generator) for action, anchor in scenes]
+        frames = [self._frames(action, anchor, generator, max_points) for action, anchor in scenes]
+        carries = [f.pop("carry", None) for f in frames]
         results: list[np.ndarray | None] = [None] * len(frames)
         by_size: dict[tuple, list[int]] = {}
         for i, f in enumerate(frames):
@@ -209,8 +242,8 @@ class Tax3D(nn.Module):
                        for k in frames[chunk[0]]}  # (C * K, ...)
             out = self.sample(stacked["action"], stacked["anchor"], steps, sampler, generator)
             goals = to_world(out, stacked, self.spec, scale).reshape(len(chunk), num_samples, -1, 3)
-            for i, g in zip(chunk, goals.cpu().numpy()):
-                results[i] = g
+            for i, g in zip(chunk, goals):
+                results[i] = self._carry(g, carries[i]).cpu().numpy()
         return results
 
     # --- checkpoints -----------------------------------------------------------------------------------------------
