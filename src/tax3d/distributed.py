@@ -111,8 +111,12 @@ def start(world: World, device: torch.device) -> None:
     dist.init_process_group(name, rank=world.rank, world_size=world.size, timeout=TIMEOUT)
 
 
-def stop(world: World) -> None:
+def stop(world: World, finished: bool = False) -> None:
+    """Leave the process group. After a finished run every rank first waits for the others, so that no rank tears
+    the group down while another still talks to it (a gloo thread left running aborts the process at exit)."""
     if world.distributed and dist.is_initialized():
+        if finished:
+            dist.barrier()
         dist.destroy_process_group()
 
 

@@ -340,7 +340,8 @@ def _fixed_scene(clouds: list[np.ndarray]) -> dict:
 
 
 def _figure_html(fig) -> str:
-    return fig.to_html(full_html=False, include_plotlyjs=False, config=dict(displaylogo=False))
+    # responsive: the figure takes its box's width (the released-cloth picture beside it keeps its own)
+    return fig.to_html(full_html=False, include_plotlyjs=False, config=dict(displaylogo=False, responsive=True))
 
 
 # ---------------------------------------------------------------- the page
@@ -353,7 +354,8 @@ th:first-child { text-align: left; }
 .provenance { color: #555; font-size: 0.9em; line-height: 1.6; }
 .episode { border-top: 1px solid #ddd; padding: 0.4em 0 0.8em; }
 .episode-row { display: flex; gap: 1em; align-items: center; }
-.episode-row > .figure { flex: 1 1 auto; min-width: 0; }
+.episode-row > .figure { flex: 1 1 0; min-width: 0; overflow: hidden; }
+.episode-row > img, .episode-row > p { flex: 0 0 auto; }
 .success { color: #1a7f37; font-weight: bold; }
 .failure { color: #c1121f; font-weight: bold; }
 """

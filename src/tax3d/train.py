@@ -377,9 +377,12 @@ def run(args: Args) -> int:
     val_demos = load_val_demos(config)
     distributed.start(world, device)
     try:
-        return fit(config, out, last, dataset, val_demos, device, dtype, world)
-    finally:
+        code = fit(config, out, last, dataset, val_demos, device, dtype, world)
+    except BaseException:
         distributed.stop(world)
+        raise
+    distributed.stop(world, finished=True)
+    return code
 
 
 def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, val_demos: list[dict],
@@ -487,6 +490,8 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
         if out_of_time:
             break
     bar.close()
+    if hasattr(batches, "_shutdown_workers"):  # data workers end here, not in the interpreter's exit
+        batches._shutdown_workers()
     if log is not None:
         log.close()
         minutes = (time.time() - started) / 60
