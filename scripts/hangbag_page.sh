@@ -9,17 +9,17 @@ ARGS=(--task hangbag --eval CD=$E/hangbag-cd.json CP=$E/hangbag-cp.json)
 for v in cd_w:CD-W cp_w:CP-W cd_nac:CD-NAC cp_nac:CP-NAC sd:SD sp:SP dp3:DP3; do
   f=$E/hangbag-${v%%:*}.json; [ -f $f ] && ARGS+=("${v##*:}=$f")
 done
-[ -f $E/hangbag-cd-reference-offset.json ] && ARGS+=("TAX3D-CD with REFERENCE.md's offset=$E/hangbag-cd-reference-offset.json")
+[ -f $E/hangbag-cd-reference-offset.json ] && ARGS+=("TAX3D-CD with docs/reference.md's offset=$E/hangbag-cd-reference-offset.json")
 B=()
 [ -f docs/results/hangbag_oracle.json ] && B+=("each demo's own goal (the policy's ceiling)=docs/results/hangbag_oracle.json")
-[ -f docs/results/hangbag_oracle_reference_offset.json ] && B+=("each demo's own goal, REFERENCE.md's offset (0, -0.5, 1.0)=docs/results/hangbag_oracle_reference_offset.json")
+[ -f docs/results/hangbag_oracle_reference_offset.json ] && B+=("each demo's own goal, docs/reference.md's offset (0, -0.5, 1.0)=docs/results/hangbag_oracle_reference_offset.json")
 [ -f docs/results/hangbag_mean_goal.json ] && B+=("mean goal of train in the anchor frame (the floor)=docs/results/hangbag_mean_goal.json")
 NOTE1=$(cat <<'TEXT'
 **Reading the table.** The learned rows sit between two fixed-goal rows run through the same policy and scene: the floor, the training set's mean goal placed at each anchor, and the ceiling, each demo's own goal (which still fails on a few bags, so no prediction can reach 1.00 here). TAX3D-CP reaches the paper's success on `train` and out of distribution and falls short on `unseen`; TAX3D-CD is only a little above the floor. Both RMSEs are 2-4x the paper's and not far below the floor's. The budget is the main difference: 4,000 steps of the `cpu` preset (a smaller network, 256 + 256 points, no rotation augmentation) against the paper's ~500,000 steps of its own settings (`--preset paper`, one flag away). The section "How far a fixed goal gets" shows why a fixed goal gets this far and no further: the goals turn with the hook (up to 60 degrees), and even the mean goal turned with the true rotation leaves much of the error, which is the bag's own hanging shape; the hook is a small part of the anchor cloud, so the rotation has to be read from a few of its points.
 TEXT
 )
 NOTE2=$(cat <<'TEXT'
-**The policy's offset.** REFERENCE.md gives (0, -0.5, 1.0) for the authors' bag and hook. With the demos' own goals it hangs fewer of our bags (the row so named, on all 16 `train` demos and the first 20 of `unseen` and `ood`) than the (0, 0, 0.5) used here; [../hangbag.md](../hangbag.md) has the probes that chose it. The fixed-goal JSON files beside this page are those runs' output (written under `logs/` first, then copied here).
+**The policy's offset.** The Evaluation section of [reference.md](../reference.md#evaluation) gives (0, -0.5, 1.0) for the authors' bag and hook. With the demos' own goals it hangs fewer of our bags (the row so named, on all 16 `train` demos and the first 20 of `unseen` and `ood`) than the (0, 0, 0.5) used here; [../hangbag.md](../hangbag.md) has the probes that chose it. The fixed-goal JSON files beside this page are those runs' output (written under `logs/` first, then copied here).
 TEXT
 )
 NOTE3=$(cat <<'TEXT'

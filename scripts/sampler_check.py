@@ -1,4 +1,4 @@
-"""How much each checkpoint's goal RMSE depends on the sampler: the min over samples of the RMSE (REFERENCE.md,
+"""How much each checkpoint's goal RMSE depends on the sampler: the min over samples of the RMSE (docs/reference.md,
 Evaluation) with the respaced 10-step DDPM, the 10-step DDIM and the full 100-step DDPM, on the same demos, seed
 and noise. Prints JSON and, with --out, keeps it with the command, machine and date.
 

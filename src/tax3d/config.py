@@ -35,7 +35,7 @@ class ModelConfig:
 
 @dataclass
 class DiffusionConfig:
-    """The diffusion process (REFERENCE.md, Diffusion) and the default sampler of `predict`."""
+    """The diffusion process (docs/reference.md, Diffusion) and the default sampler of `predict`."""
 
     num_timesteps: Annotated[int, Positive] = 100
     learn_sigma: bool = True
@@ -52,7 +52,7 @@ class DiffusionConfig:
 
 @dataclass
 class DataConfig:
-    """Demonstration folders and how samples are drawn from them (REFERENCE.md, Training)."""
+    """Demonstration folders and how samples are drawn from them (docs/reference.md, Training)."""
 
     train: tuple[str, ...] = ()
     """training demo folders (or demo files)"""
@@ -116,7 +116,7 @@ class Config:
 
 
 def paper() -> Config:
-    """The paper's settings (App. B; REFERENCE.md, Model / Diffusion / Training): ~500k steps, for a GPU.
+    """The paper's settings (App. B; docs/reference.md, Model / Diffusion / Training): ~500k steps, for a GPU.
 
     Six data workers: in-process loading held one H100 to 6 steps per second, six workers to 29 (docs/scaling.md);
     the samples do not depend on the number of workers."""

@@ -123,7 +123,7 @@ def centre(points):
 
 
 def apply_pose(points, rot_z, trans):
-    """p -> Rz(rot_z) p + trans: the anchor's pose (REFERENCE.md, HangProcCloth scene)."""
+    """p -> Rz(rot_z) p + trans: the anchor's pose (docs/reference.md, HangProcCloth scene)."""
     return rotate_z(points, rot_z) + _like(trans, points)[..., None, :]
 
 

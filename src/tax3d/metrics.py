@@ -1,4 +1,4 @@
-"""Goal-prediction metrics (paper App. C; REFERENCE.md, Evaluation) and the trivial mean-goal predictor.
+"""Goal-prediction metrics (paper App. C; docs/reference.md, Evaluation) and the trivial mean-goal predictor.
 
 Every function takes numpy arrays or torch tensors of world-frame points and returns the same kind.
 """

@@ -4,7 +4,7 @@
 
 The npz holds `goals` (D, K, N, 3) world-frame predictions (an object array of (K, N_i, 3) when the demos' point
 counts differ), `files` (D,) and, with ground truth, `rmse` (D, K). The printed RMSE is the mean over demos of the
-min over samples (REFERENCE.md, Evaluation), and the mean over all samples; `--summary FILE` keeps it as JSON with
+min over samples (docs/reference.md, Evaluation), and the mean over all samples; `--summary FILE` keeps it as JSON with
 the command, machine and date.
 """
 

@@ -1,6 +1,6 @@
 """Training samples: point sampling, object-specific frames, augmentation and the target of each variant.
 
-Frames and targets follow the paper (Section 3.1, "Object-Specific Frames") and REFERENCE.md, "Model":
+Frames and targets follow the paper (Section 3.1, "Object-Specific Frames") and docs/reference.md, "Model":
 anchor frame = anchor points minus the anchor mean, action frame = action points minus the action mean;
 the goal is expressed in the anchor frame. A sample's frame origins are kept so that `to_world` maps a
 model output (a cross-displacement or goal points, in the variant's frame) back to world-frame goal points.
@@ -85,7 +85,7 @@ def make_target(goal: torch.Tensor, frames: dict, spec: VariantSpec, target_scal
     """The variant's target for world goal points (..., N, 3): (..., N, 3), or (..., N + M, 3) for SD/SP.
 
     CD: goal in the anchor frame minus action in the action frame; CP: goal in the anchor frame
-    (REFERENCE.md, Model). SD/SP append the anchor's target: zero displacement, or the anchor points.
+    (docs/reference.md, Model). SD/SP append the anchor's target: zero displacement, or the anchor points.
     """
     goal_in_frame = goal - frames["anchor_mean"][..., None, :]
     if spec.target == "displacement":
@@ -139,7 +139,7 @@ def make_sample(
     """One training sample from world-frame action (N, 3), anchor (M, 3) and goal (N, 3) points.
 
     FPS picks num_action_points and num_anchor_points (None: all points, in order). With `rotate`, the
-    anchor and the goal turn about z by U(0, 2 pi) and the action does not (REFERENCE.md, Training): the
+    anchor and the goal turn about z by U(0, 2 pi) and the action does not (docs/reference.md, Training): the
     result is a new scene, and `goal` is that scene's world-frame goal. `indices` (action rows, anchor rows) given
     replace the sampling. Returns float32 tensors (plus the int64 action_idx); see `DemoDataset` for the keys.
     """

@@ -1,6 +1,6 @@
 """Gaussian diffusion for TAX3D (Improved DDPM, as in the DiT code base): schedule, hybrid loss, samplers, respacing.
 
-Paper Sec. 3 (Eq. 1) and App. B; REFERENCE.md, "Diffusion". Tensors are channel-last, (B, N, C): the network
+Paper Sec. 3 (Eq. 1) and App. B; docs/reference.md, "Diffusion". Tensors are channel-last, (B, N, C): the network
 outputs (B, N, 2C) with epsilon in the first C channels and the variance interpolation v in the last C when the
 variance is learned, else (B, N, C). Schedule buffers are float64 numpy arrays, cast to the data's dtype on use.
 """
@@ -23,7 +23,7 @@ LOSSES = ("epsilon", "x0", "v", "min_snr")
 
 
 def linear_betas(num_timesteps: int) -> np.ndarray:
-    """Linear schedule of Ho et al. scaled by 1000 / T (REFERENCE.md, Diffusion): T = 100 gives 0.001 .. 0.2."""
+    """Linear schedule of Ho et al. scaled by 1000 / T (docs/reference.md, Diffusion): T = 100 gives 0.001 .. 0.2."""
     scale = 1000.0 / num_timesteps
     return np.linspace(scale * 1e-4, scale * 0.02, num_timesteps, dtype=np.float64)
 
@@ -60,7 +60,7 @@ def discretized_gaussian_log_likelihood(x: torch.Tensor, means: torch.Tensor, lo
     This is improved-diffusion's decoder for 8-bit images in [-1, 1]: values <= -0.999 and >= 0.999 get the whole
     lower / upper tail. The DiT code base the paper builds on uses it unchanged for every kind of data, so it is
     used here for point displacements in DEDO units too (most values then fall in a tail bin); it only enters the
-    loss at t == 0, where it trains the variance channels (REFERENCE.md, Diffusion).
+    loss at t == 0, where it trains the variance channels (docs/reference.md, Diffusion).
     """
     centered = x - means
     inv_std = torch.exp(-log_scales)
@@ -193,7 +193,7 @@ class GaussianDiffusion:
         """p(x_{t-1} | x_t) from the network output: a dict of mean, variance, log_variance, pred_xstart, eps.
 
         Epsilon prediction; with learn_sigma, log sigma^2 = f log beta_t + (1 - f) log posterior variance,
-        f = (v + 1) / 2 (Nichol & Dhariwal Eq. 15). No clipping of x_0 (REFERENCE.md, Diffusion).
+        f = (v + 1) / 2 (Nichol & Dhariwal Eq. 15). No clipping of x_0 (docs/reference.md, Diffusion).
         """
         C = x_t.shape[-1]
         if self.learn_sigma:
@@ -239,7 +239,7 @@ class GaussianDiffusion:
 
     def training_losses(self, model_fn: ModelFn, x_start: torch.Tensor, t: torch.Tensor,
                         noise: torch.Tensor | None = None) -> dict:
-        """Hybrid loss of Improved DDPM (REFERENCE.md, Diffusion). Returns per-sample (B,) tensors:
+        """Hybrid loss of Improved DDPM (docs/reference.md, Diffusion). Returns per-sample (B,) tensors:
         "mse" (the mean term, mean over points and channels), "vb" (zeros without learn_sigma) and "loss" = mse + vb.
         The mean term is the epsilon MSE (loss "epsilon", the paper's) or x0_loss_weight(t) times the x_0 MSE.
         The VB term sees the predicted mean stop-gradiented, so it trains the variance channels only."""

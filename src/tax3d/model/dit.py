@@ -1,6 +1,6 @@
 """Diffusion Transformer over point clouds: TAX3D's cross-attention DiT and the scene (self-only) variant.
 
-Paper Sec. 3.2 and App. B.1; the facts the paper leaves out are in REFERENCE.md, "Model".
+Paper Sec. 3.2 and App. B.1; the facts the paper leaves out are in docs/reference.md, "Model".
 No positional encoding anywhere: every network here is permutation-equivariant over its query points.
 """
 
@@ -132,7 +132,7 @@ class DiTCrossBlock(nn.Module):
         self.cross_attn = CrossAttention(hidden_size, num_heads)
         self.norm3 = _layer_norm(hidden_size)
         self.mlp = Mlp(hidden_size, mlp_ratio)
-        # shift/scale/gate for self-attention, cross-attention and the MLP (REFERENCE.md, Model)
+        # shift/scale/gate for self-attention, cross-attention and the MLP (docs/reference.md, Model)
         self.adaLN_modulation = nn.Sequential(nn.SiLU(), nn.Linear(hidden_size, 9 * hidden_size))
 
     def forward(self, x: torch.Tensor, anchor: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
@@ -315,7 +315,7 @@ class DiTPointCloudScene(_PointDiT):
         self.out_channels = 2 * in_channels if learn_sigma else in_channels
         self.num_heads = num_heads
 
-        # [x_t, x_0] -> Conv1d(6 -> 128) in REFERENCE.md, Model; a point-wise Linear here
+        # [x_t, x_0] -> Conv1d(6 -> 128) in docs/reference.md, Model; a point-wise Linear here
         self.x_embedder = nn.Linear(2 * in_channels, hidden_size)
         self._make_conditioning(hidden_size, time_conditioning)
 

@@ -79,7 +79,7 @@ class Tax3D(nn.Module):
     def loss(self, batch: dict, t: torch.Tensor | None = None, noise: torch.Tensor | None = None) -> dict:
         """Mean training losses of a batch from `DemoDataset`: loss, mse, vb (scalars).
 
-        Diffusion variants: the hybrid loss (REFERENCE.md, Diffusion); t and noise default to fresh draws.
+        Diffusion variants: the hybrid loss (docs/reference.md, Diffusion); t and noise default to fresh draws.
         RD/RP: the MSE of one regression pass, vb = 0. SD/SP diffuse the scene target (action and anchor rows)."""
         action, anchor, target = batch["action"], batch["anchor"], batch["target"]
         if not self.spec.diffusion:

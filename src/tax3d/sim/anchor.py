@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pybullet
 
-# REFERENCE.md, "HangProcCloth scene": sizes before the global scale of 10.
+# docs/reference.md, "HangProcCloth scene": sizes before the global scale of 10.
 SCALE = 10.0
 HANGER_POSITION = np.array([0.0, 0.0, 8.0])
 # (radius, length, centre xyz, rotation about y in degrees) of each hanger cylinder.
@@ -18,7 +18,7 @@ ROD_PARTS = (
     (0.1, 0.05, (0.0, 0.0, 0.0), 0.0),  # base disc
     (0.03, 0.8, (0.0, 0.0, 0.4), 0.0),  # the rod itself
 )
-# Goal location in the anchor's frame (REFERENCE.md): the centre of the hanger.
+# Goal location in the anchor's frame (docs/reference.md, HangProcCloth scene): the centre of the hanger.
 GOAL_LOCAL = np.array([0.0, 0.0, 8.2])
 
 

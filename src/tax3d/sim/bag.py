@@ -11,20 +11,20 @@ import pybullet
 from tax3d.errors import UsageError
 from tax3d.sim.env import SOFT_BODY
 
-# REFERENCE.md, "HangBag": the bag's initial pose; the tote meshes of DEDO's HangBag load at scale 1, so the mesh
+# docs/reference.md, "HangBag": the bag's initial pose; the tote meshes of DEDO's HangBag load at scale 1, so the mesh
 # file is written in world units. File frame: x across the bag, y up (Euler x = pi/2 turns it to world z), z from
 # the back wall to the front wall (world -y: the front wall, handle 0, faces the pole).
 BAG_POSITION = (0.0, 8.0, 2.0)
 BAG_EULER = (np.pi / 2, 0.0, 0.0)
 BAG_SCALE = 1.0
-# REFERENCE.md, "Evaluation": the HangBag policy's gripper targets are the predicted grip vertices plus
+# docs/reference.md, "Evaluation": the HangBag policy's gripper targets are the predicted grip vertices plus
 # (0, -0.5, 1.0), world frame. Our bag and hook are not the authors' meshes: with the demos' own goals that offset
 # holds the handle so high and so far along world -y (the hook turns by up to 60 degrees, so a fixed -y does not
 # point along its arm) that the before-release check often fails; half the lift and no y shift hangs every bag
 # with room to spare (docs/results/hangbag.md measures both).
 REFERENCE_POLICY_OFFSET = (0.0, -0.5, 1.0)
 POLICY_OFFSET = (0.0, 0.0, 0.5)
-# The cloth's soft-body parameters (REFERENCE.md, "HangProcCloth scene"); the bag behaves with them unchanged.
+# The cloth's soft-body parameters (docs/reference.md, "HangProcCloth scene"); the bag behaves with them unchanged.
 BAG_SOFT_BODY = dict(SOFT_BODY)
 
 

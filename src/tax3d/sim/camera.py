@@ -9,7 +9,7 @@ import pybullet
 
 from tax3d.sim.anchor import add_floor, load_anchor, pose_points
 
-# REFERENCE.md, "HangProcCloth scene": the authors' camera, column-major, 200 x 200, tiny renderer.
+# docs/reference.md, "HangProcCloth scene": the authors' camera, column-major, 200 x 200, tiny renderer.
 VIEW = [
     0.034899137914180756, 0.1009947806596756, -0.9942747354507446, 0.0,
     -0.9993908405303955, 0.0035267791245132685, -0.03472048044204712, 0.0,
@@ -48,7 +48,10 @@ def render_segmented_points(client: int, body_ids, size: int = IMAGE_SIZE) -> np
 
 @functools.lru_cache(maxsize=4)
 def canonical_anchor_cloud(with_floor: bool) -> np.ndarray:
-    """The hanger and rod rendered once at rot = 0, trans = 0 (REFERENCE.md: the camera moves with the anchor)."""
+    """The hanger and rod rendered once at rot = 0, trans = 0.
+
+    docs/reference.md, HangProcCloth scene: the camera moves with the anchor.
+    """
     client = pybullet.connect(pybullet.DIRECT)
     try:
         if with_floor:

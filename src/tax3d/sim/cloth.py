@@ -11,7 +11,7 @@ from tax3d.errors import UsageError
 NODE_DENSITY = 25
 # The fixed cloth of HangProcCloth-simple (paper, appendix A.2.1).
 SIMPLE_CLOTH = {"num_holes": 1, "node_density": 25, "w": 1.0, "h": 1.0, "holes": [{"x0": 8, "x1": 16, "y0": 9, "y1": 13}]}
-# The fixed double-hole cloth (REFERENCE.md, "HangProcCloth scene").
+# The fixed double-hole cloth (docs/reference.md, "HangProcCloth scene").
 DOUBLE_HOLE_CLOTH = {
     "num_holes": 2,
     "node_density": 25,
@@ -36,7 +36,10 @@ class ClothMesh:
         return len(self.nodes)
 
     def grip_vertices(self) -> tuple[int, int]:
-        """Vertices of grid nodes (0, 0) and (0, n - 1): the top corners, 0 and n - 1 (REFERENCE.md)."""
+        """Vertices of grid nodes (0, 0) and (0, n - 1): the top corners, 0 and n - 1.
+
+        docs/reference.md, HangProcCloth scene.
+        """
         n = self.params["node_density"]
         index = {tuple(v): i for i, v in enumerate(self.nodes)}
         return index[(0, 0)], index[(0, n - 1)]

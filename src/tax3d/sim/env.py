@@ -16,7 +16,7 @@ from tax3d.sim.camera import anchor_cloud
 from tax3d.sim.cloth import ClothMesh, build_cloth
 from tax3d.sim.success import cloth_success
 
-# REFERENCE.md, "HangProcCloth scene" and "Units and frames".
+# docs/reference.md, "HangProcCloth scene" and "Units and frames".
 TIMESTEP = 1.0 / 500.0
 SIM_STEPS_PER_ACTION = 8
 RELEASE_SIM_STEPS = 500
@@ -198,7 +198,10 @@ class HangClothEnv:
             pybullet.stepSimulation(physicsClientId=c)
 
     def release(self, steps: int = RELEASE_SIM_STEPS) -> None:
-        """The release phase: the grippers stay tied to the cloth but no force is applied (REFERENCE.md)."""
+        """The release phase: the grippers stay tied to the cloth but no force is applied.
+
+        docs/reference.md, HangProcCloth scene.
+        """
         for _ in range(steps):
             pybullet.stepSimulation(physicsClientId=self.client)
 

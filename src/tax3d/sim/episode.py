@@ -11,7 +11,7 @@ import numpy as np
 from tax3d.sim.env import HangClothEnv, SceneState, SimulationExploded
 from tax3d.sim.expert import PseudoExpert
 
-MANIPULATION_STEPS = 300  # environment steps (REFERENCE.md, "Pseudo-expert and episode")
+MANIPULATION_STEPS = 300  # environment steps (docs/reference.md, "Pseudo-expert and episode")
 TRAJECTORY_POINTS = 512
 
 

@@ -19,10 +19,10 @@ class ExpertRule:
     approach_steps: int = 0
 
 
-# HangProcCloth: REFERENCE.md, "Pseudo-expert". HangBag (docs/hangbag.md): the same rule with the hook as the goal,
-# the handle's strap as the aimed vertices, an offset that leaves the handle between the pole and the hook's pin, and
-# a first stretch of 100 steps 2 units out along the hook's arm and 0.5 higher, so that the handle comes in along the
-# arm at large anchor rotations instead of catching it from the side.
+# HangProcCloth: docs/reference.md, "Pseudo-expert and episode". HangBag (docs/hangbag.md): the same rule with the
+# hook as the goal, the handle's strap as the aimed vertices, an offset that leaves the handle between the pole and
+# the hook's pin, and a first stretch of 100 steps 2 units out along the hook's arm and 0.5 higher, so that the
+# handle comes in along the arm at large anchor rotations instead of catching it from the side.
 EXPERT_RULES = {
     "cloth": ExpertRule(tuple(anchor.GOAL_LOCAL), (0.0, -1.5, 0.0)),
     "bag": ExpertRule(tuple(hook.GOAL_LOCAL), (0.0, -1.0, 0.5), approach=(0.0, 2.0, 0.5), approach_steps=100),

@@ -10,7 +10,7 @@ import pybullet
 from tax3d.sim.anchor import add_floor, pose_points
 from tax3d.sim.camera import render_segmented_points
 
-# REFERENCE.md, "HangBag": body poses, world units.
+# docs/reference.md, "HangBag": body poses, world units.
 POLE_POSITION, POLE_EULER = (0.0, 0.0, 5.0), (np.pi / 2, 0.0, 0.0)
 HOOK_POSITION, HOOK_EULER = (0.0, 1.28, 9.0), (0.0, 0.0, np.pi / 2)
 # The goal is the hook's origin, in the anchor's frame (DEDO's HangBag goal_pos).
@@ -69,7 +69,7 @@ def _body(client: int, parts, position, euler, rot_z: float, trans) -> int:
         baseOrientation=pybullet.getQuaternionFromEuler([euler[0], euler[1], euler[2] + rot_z]),
         physicsClientId=client,
     )
-    # REFERENCE.md, "HangProcCloth scene": rigid objects have friction 1 and restitution 0.
+    # docs/reference.md, "HangProcCloth scene": rigid objects have friction 1 and restitution 0.
     pybullet.changeDynamics(
         body, -1, lateralFriction=1.0, spinningFriction=1.0, rollingFriction=1.0, restitution=0.0,
         physicsClientId=client,

@@ -20,7 +20,7 @@ class TaskSpec:
     sizes: dict  # default number of demonstrations per split (appendix A.5.2)
     demos_per_cloth: int = 1  # multimodal: one demonstration per hole of the same cloth and anchor pose
     scene: str = "cloth"  # "cloth": HangProcCloth's cloth and hanger; "bag": HangBag's bag and hook
-    # Added to the predicted grip-vertex positions to give the evaluation policy's gripper targets (REFERENCE.md,
+    # Added to the predicted grip-vertex positions to give the evaluation policy's gripper targets (docs/reference.md,
     # "Evaluation"; world frame).
     policy_offset: tuple = (0.0, 0.0, 0.0)
 
@@ -28,7 +28,7 @@ class TaskSpec:
 @dataclass(frozen=True)
 class SplitSpec:
     name: str
-    seed: int  # REFERENCE.md: train 0, val 10, val_ood 20
+    seed: int  # docs/reference.md, HangProcCloth scene: train 0, val 10, val_ood 20
     ood: bool
 
 

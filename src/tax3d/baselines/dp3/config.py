@@ -1,4 +1,4 @@
-"""DP3 settings (REFERENCE.md, "DP3 baseline"): the presets `paper` and `cpu`, and their JSON form.
+"""DP3 settings (docs/reference.md, "DP3 baseline"): the presets `paper` and `cpu`, and their JSON form.
 
 A checkpoint's config.json is this JSON with "kind": "dp3", which is how `tax3d eval` tells it from a TAX3D one.
 """
@@ -78,7 +78,10 @@ class DP3Config:
 
 
 def paper() -> DP3Config:
-    """REFERENCE.md's DP3, with DP3's own UNet widths and optimiser details (docs/dp3.md)."""
+    """The DP3 of docs/reference.md ("DP3 baseline"), with DP3's own UNet widths and optimiser details.
+
+    See docs/dp3.md.
+    """
     return DP3Config()
 
 

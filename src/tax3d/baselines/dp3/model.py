@@ -1,4 +1,4 @@
-"""DP3: a point-cloud-conditioned diffusion policy over absolute gripper targets (REFERENCE.md, "DP3 baseline").
+"""DP3: a point-cloud-conditioned diffusion policy over absolute gripper targets (docs/reference.md, "DP3 baseline").
 
     model = DP3.from_pretrained("runs/dp3/last")
     actions = model.predict_action(points, state)   # (B, horizon, 6) world-frame gripper targets
@@ -23,7 +23,7 @@ from tax3d.baselines.dp3.normalizer import MinMaxNormalizer
 from tax3d.baselines.dp3.scheduler import DDIM
 from tax3d.checkpoint import CONFIG_NAME, WEIGHTS_NAME, check_directory, load_checked, read_weights
 
-STATE_DIM = 12  # two grippers' positions and velocities (REFERENCE.md, "DP3 baseline")
+STATE_DIM = 12  # two grippers' positions and velocities (docs/reference.md, "DP3 baseline")
 ACTION_DIM = 6  # two absolute gripper targets
 
 

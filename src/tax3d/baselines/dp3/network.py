@@ -1,4 +1,6 @@
-"""DP3's networks (REFERENCE.md, "DP3 baseline"): the point-cloud and state encoder, and the conditional 1-D UNet."""
+"""DP3's networks (docs/reference.md, "DP3 baseline"): the point-cloud and state encoder, and the conditional
+1-D UNet.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""DDIM for DP3 (REFERENCE.md, "DP3 baseline"): squaredcos_cap_v2 betas, sample prediction, clipping, eta = 0.
+"""DDIM for DP3 (docs/reference.md, "DP3 baseline"): squaredcos_cap_v2 betas, sample prediction, clipping, eta = 0.
 
 The settings DP3 gives its scheduler: 100 training steps, 10 inference steps, steps offset 0 and the last step
 to alpha_bar = 1 ("set_alpha_to_one"), so the final step returns the (clipped) predicted clean sample.

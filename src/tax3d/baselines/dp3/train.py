@@ -44,7 +44,7 @@ class Args:
     out: Path = Path("runs/dp3")
     """output folder: config.json, log.jsonl and last/"""
     preset: Literal["paper", "cpu"] = "paper"
-    """paper: REFERENCE.md's DP3 (a GPU's work); cpu: a small model that trains in minutes on a CPU"""
+    """paper: docs/reference.md's DP3 (a GPU's work); cpu: a small model that trains in minutes on a CPU"""
     steps: int | None = None
     """training steps (default: the preset's, paper 112,500, cpu 3,000)"""
     batch_size: int | None = None
