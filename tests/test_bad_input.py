@@ -242,3 +242,14 @@ def test_commands_are_quiet():
         done = subprocess.run([sys.executable, *argv], capture_output=True, text=True, timeout=120)
         assert done.returncode == 0 and "pybullet build time" not in done.stdout + done.stderr
     assert done.stdout.startswith("usage: tax3d generate") and done.stderr == ""
+
+
+def test_generate_with_nothing_left_to_do_says_so(tmp_path, capsys, monkeypatch):
+    from tax3d.sim import generate
+
+    stats = {"episodes": 0, "successes": 0, "success_rate": float("nan"), "seconds_per_episode": float("nan"),
+             "exploded": 0, "broken": 0, "written": 0, "skipped": 40, "failed": []}
+    monkeypatch.setattr(generate, "generate", lambda args: stats)
+    assert main(["generate", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "nothing to generate: the 40 demos asked for are already in" in out and "nan" not in out

@@ -232,6 +232,9 @@ def _run(jobs: list[Job], args: Args, progress: bool) -> list[JobResult]:
 def run(args: Args) -> int:
     stats = generate(args)
     rate = stats["success_rate"]
+    if stats["episodes"] == 0:
+        print(f"nothing to generate: the {stats['skipped']} demos asked for are already in {args.out}")
+        return 0
     print(
         f"expert success {stats['successes']}/{stats['episodes']} episodes ({rate:.0%}), "
         f"{stats['seconds_per_episode']:.1f} s per episode, {stats['exploded']} exploded"
