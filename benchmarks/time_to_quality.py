@@ -32,7 +32,8 @@ def train_command(args, name: str, options: str) -> list[str]:
     return [sys.executable, "-m", "tax3d.cli", "train", "--preset", args.preset, "--out", str(args.out / name),
             "--data.train", *args.train, "--data.val", *args.val, "--train.minutes", str(args.minutes),
             "--train.validations", str(args.validations), "--train.val-demos", str(args.val_demos),
-            "--train.val-samples", str(args.val_samples), "--train.threads", "1", *shlex.split(options)]
+            "--train.val-samples", str(args.val_samples), "--train.threads", "1", "--data.task", args.task,
+            *shlex.split(options)]
 
 
 def summary(out: Path, options: str, command: list[str]) -> dict:
@@ -56,6 +57,7 @@ def main() -> int:
     parser.add_argument("--run", nargs=2, action="append", metavar=("NAME", "OPTIONS"), required=True)
     parser.add_argument("--out", type=Path, default=Path("runs/time_to_quality"))
     parser.add_argument("--preset", default="cpu")
+    parser.add_argument("--task", default="", help="recorded in each checkpoint's config as data.task")
     parser.add_argument("--validations", type=int, default=12)
     parser.add_argument("--val-demos", type=int, default=20)
     parser.add_argument("--val-samples", type=int, default=2)

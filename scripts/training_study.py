@@ -19,6 +19,7 @@ from pathlib import Path
 from tax3d.atomic import atomic_write, write_text
 
 MARKS = (15, 30, 60)
+PAPER_UNSEEN_RMSE = 0.405  # paper, table "HangProcCloth-unimodal" (tab:multi_unimodal): TAX3D-CD, unseen RMSE
 
 
 def at_minute(curve: list[dict], mark: float) -> dict | None:
@@ -82,7 +83,13 @@ def main() -> int:
         print(f"{args.page}: no <!-- study --> ... <!-- /study --> lines to fill", file=sys.stderr)
         return 2
     first = studies[0][1]
-    lines = rows(studies)
+    ends = [(result["curve"][-1], f"{name}: {run}") for name, study in studies for run, result in study["runs"].items()
+            if result["curve"]]
+    best, label = min(ends, key=lambda e: e[0]["val_rmse"])
+    lines = [f"**Best at the end of its run: {label}, validation RMSE {best['val_rmse']:.3f} after "
+             f"{best['minutes']:.0f} minutes** (mean-goal floor {floor:.3f}; the paper's TAX3D-CD, 500k GPU steps: "
+             f"{PAPER_UNSEEN_RMSE} on its unseen split)." if floor is not None else "", ""]
+    lines += rows(studies)
     lines += ["", f"![validation RMSE against minutes](results/training/{args.plot.name})", "",
               f"Machine: {first['machine']}, {first['date']}; each run pinned to one core (its data worker too), "
               f"validated {len(next(iter(first['runs'].values()))['curve'])} times on the first "
