@@ -32,17 +32,23 @@ def cell(point: dict | None) -> str:
     return "-" if point is None else f"{point['val_rmse']:.3f} ({point['minutes']:.0f} min)"
 
 
+def first_rate(result: dict) -> str:
+    """Steps per minute over the run's first steps (its plan's measurement, before other work shared the core)."""
+    plan = result.get("plan")
+    return f"{60 / plan['step_seconds']:.0f}" if plan else "-"
+
+
 def rows(studies: list[tuple[str, dict]]) -> list[str]:
     lines = ["| study | run | options added to the `cpu` preset of the time | " +
-             " | ".join(f"RMSE @ {m} min" for m in MARKS) + " | at the end | steps / min |",
-             "| --- | --- | --- | " + " | ".join("---" for _ in MARKS) + " | --- | --- |"]
+             " | ".join(f"RMSE @ {m} min" for m in MARKS) + " | at the end | steps / min (whole run) | steps / min (first steps) |",
+             "| --- | --- | --- | " + " | ".join("---" for _ in MARKS) + " | --- | --- | --- |"]
     for name, study in studies:
         for run, result in study["runs"].items():
             curve = result["curve"]
             marks = " | ".join(cell(at_minute(curve, m)) for m in MARKS)
             options = f"`{result['options']}`" if result["options"] else "(none)"
             lines.append(f"| {name} | {run} | {options} | {marks} | {cell(curve[-1] if curve else None)} | "
-                         f"{result['steps_per_minute']:.0f} |")
+                         f"{result['steps_per_minute']:.0f} | {first_rate(result)} |")
     return lines
 
 
