@@ -1,11 +1,11 @@
 """Write a shipped checkpoint's model card (its README.md) from the files that describe it, no number typed by hand.
 
     python scripts/model_card.py checkpoints/tax3d-cd-unimodal --log docs/results/training/RUN-log.json \
-        --eval docs/results/evals/NAME.json --data-command "..." --train-command "..." [--paper 0.90/0.85]
+        --eval docs/results/evals/NAME.json --data-command "..." --train-command "..." [--paper 0.94/0.90/0.85]
 
 --log is a training log kept as JSON (`{"records": [...]}` from log.jsonl, see --keep-log), --eval a kept
 `tax3d eval` summary. The card says what the checkpoint is for, how it was made and how well it does, beside the
-paper's success where --paper gives it (unseen/ood).
+paper's success where --paper gives it (train/unseen/ood).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def success_table(splits: dict, paper: list[str] | None) -> list[str]:
     for name, split in splits.items():
         extra = ""
         if paper:
-            extra = f" {dict(zip(('unseen', 'ood'), paper)).get(name, '-')} |"
+            extra = f" {dict(zip(('train', 'unseen', 'ood'), paper)).get(name, '-')} |"
         rmse = "-" if split.get("rmse") is None else f"{split['rmse']:.3f}"
         coverage = "-" if split.get("coverage_rmse") is None else f"{split['coverage_rmse']:.3f}"
         lines.append(f"| {name} | {split['episodes']} | {split['success_rate']:.2f} | {rmse} | {coverage} |{extra}")
@@ -97,7 +97,7 @@ def main() -> int:
     parser.add_argument("--eval", type=Path, required=True)
     parser.add_argument("--data-command", required=True)
     parser.add_argument("--train-command", required=True)
-    parser.add_argument("--paper", help="the paper's success, unseen/ood, e.g. 0.90/0.85")
+    parser.add_argument("--paper", help="the paper's success, train/unseen/ood, e.g. 0.94/0.90/0.85")
     args = parser.parse_args()
     if args.log.suffix == ".jsonl":
         records = read_log(args.log)
