@@ -45,7 +45,7 @@ class FixedGoal:
 def fixed_goal_episode(job: EvalJob, offset: tuple, mean: MeanGoalBaseline | None) -> dict:
     from tax3d.metrics import rmse
     from tax3d.policy import GoalPolicy
-    from tax3d.sim.env import process_env
+    from tax3d.sim.scenes import process_env
     from tax3d.sim.episode import run_episode
     from tax3d.sim.tasks import get_task
 

@@ -266,7 +266,7 @@ def test_bad_inputs(tmp_path, capsys):
 def test_policy_acts_in_a_real_rollout_and_through_eval(tmp_path, monkeypatch):
     from tax3d import evaluate as ev
     from tax3d.sim import episode as sim_episode
-    from tax3d.sim.env import process_env
+    from tax3d.sim.scenes import process_env
 
     env = process_env(True, "cloth")
     grippers = env.reset(SIMPLE_CLOTH, 0.0, [0.0, 0.0, 0.0]).grippers

@@ -112,7 +112,7 @@ def run_eval_job(job: EvalJob) -> dict:
     """One evaluation episode in this process: predict, execute open or closed loop, release, judge."""
     from tax3d.metrics import rmse
     from tax3d.policy import GoalPolicy
-    from tax3d.sim.env import process_env
+    from tax3d.sim.scenes import process_env
     from tax3d.sim.episode import run_episode
     from tax3d.sim.tasks import get_task
 

@@ -204,23 +204,3 @@ class HangClothEnv:
         """
         for _ in range(steps):
             pybullet.stepSimulation(physicsClientId=self.client)
-
-
-_PROCESS_ENVS: dict[tuple[str, bool], HangClothEnv] = {}
-
-
-def env_class(scene: str) -> type[HangClothEnv]:
-    """The environment of a task's scene: "cloth" (HangProcCloth) or "bag" (HangBag)."""
-    if scene == "bag":
-        from tax3d.sim.bag_env import HangBagEnv
-
-        return HangBagEnv
-    return HangClothEnv
-
-
-def process_env(floor: bool = True, scene: str = "cloth") -> HangClothEnv:
-    """One scene per worker process, scene kind and floor setting, reused across episodes."""
-    key = (scene, floor)
-    if key not in _PROCESS_ENVS:
-        _PROCESS_ENVS[key] = env_class(scene)(floor=floor)
-    return _PROCESS_ENVS[key]

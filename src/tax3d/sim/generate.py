@@ -17,7 +17,7 @@ from tax3d.errors import UsageError
 from tax3d.parallel import check_backend, run_each
 from tax3d.sim.bag import parse_bag_params
 from tax3d.sim.cloth import validate_cloth_params
-from tax3d.sim.env import process_env
+from tax3d.sim.scenes import process_env
 from tax3d.sim.tasks import episode_params, get_split, get_task
 from tax3d.options import OutputFolder, Positive
 
