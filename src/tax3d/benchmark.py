@@ -94,7 +94,7 @@ def _only(cls, **values) -> dict:
 
 
 def run(args: Args) -> int:
-    from tax3d.data.dataset import variant_spec
+    from tax3d.model.variants import variant_spec
     from tax3d.devices import pick_device
     from tax3d.evaluate import Args as EvalArgs
     from tax3d.evaluate import evaluate, format_table

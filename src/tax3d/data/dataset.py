@@ -9,7 +9,6 @@ model output (a cross-displacement or goal points, in the variant's frame) back 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,45 +18,7 @@ from torch.utils.data import Dataset
 from tax3d.data.format import DemoError, list_demos, load_demo
 from tax3d.errors import UsageError
 from tax3d.geometry import farthest_point_sample, random_angle, rotate_z
-
-VARIANTS = ("cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp", "rd", "rp")
-
-
-@dataclass(frozen=True)
-class VariantSpec:
-    """What a variant predicts, in which frame, and from which inputs (paper Section 4, ablations)."""
-
-    name: str
-    target: str  # "displacement" (cross-displacement) or "point" (goal action points)
-    object_centric: bool = True  # action on its mean, anchor and goal on the anchor mean; False: world frame
-    action_context: bool = True  # False: the model does not encode the action points (NAC)
-    scene: bool = False  # one scene cloud (action + anchor) on its mean, self-attention only (SD/SP)
-    diffusion: bool = True  # False: one regression pass with an MSE loss (RD/RP)
-
-
-_SPECS = {
-    "cd": VariantSpec("cd", "displacement"),
-    "cp": VariantSpec("cp", "point"),
-    "cd_w": VariantSpec("cd_w", "displacement", object_centric=False),
-    "cp_w": VariantSpec("cp_w", "point", object_centric=False),
-    "cd_nac": VariantSpec("cd_nac", "displacement", action_context=False),
-    "cp_nac": VariantSpec("cp_nac", "point", action_context=False),
-    "sd": VariantSpec("sd", "displacement", object_centric=False, scene=True),
-    "sp": VariantSpec("sp", "point", object_centric=False, scene=True),
-    "rd": VariantSpec("rd", "displacement", diffusion=False),
-    "rp": VariantSpec("rp", "point", diffusion=False),
-}
-
-
-def variant_spec(name: str | VariantSpec) -> VariantSpec:
-    """The spec of a variant name (case and '-' or '_' as in "CD-W" are accepted)."""
-    if isinstance(name, VariantSpec):
-        return name
-    key = str(name).strip().lower().replace("-", "_")
-    if key not in _SPECS:
-        raise UsageError(f"unknown variant '{name}'; expected one of {', '.join(VARIANTS)}")
-    return _SPECS[key]
-
+from tax3d.model.variants import VARIANTS, VariantSpec, variant_spec
 
 def frame_inputs(action: torch.Tensor, anchor: torch.Tensor, spec: VariantSpec) -> dict:
     """Action (..., N, 3) and anchor (..., M, 3) world points in the variant's frames, and the frame origins.
