@@ -3,7 +3,15 @@
 import pytest
 import torch
 
-from tax3d.model.dit import MODEL_PRESETS, DiTPointCloudCross, DiTPointCloudScene, TAX3D_cpu, TAX3D_paper
+from tax3d import config as cfg
+from tax3d.model.dit import DiTPointCloudCross, DiTPointCloudScene
+from tax3d.model.tax3d import build_network
+
+
+def paper_network(**kw) -> DiTPointCloudCross:
+    """The network of the `paper` preset (its size lives in tax3d.config alone)."""
+    m = cfg.paper().model
+    return DiTPointCloudCross(**{"hidden_size": m.hidden_size, "depth": m.depth, "num_heads": m.num_heads, **kw})
 
 B, N, M = 2, 10, 7
 TINY = dict(hidden_size=32, depth=2, num_heads=4)
@@ -55,10 +63,10 @@ def test_cross_errors_on_missing_inputs():
 
 
 def test_encoder_widths():
-    model = TAX3D_paper()
+    model = paper_network()
     assert model.x_embedder.out_features == 64 and model.action_embedder.out_features == 64
     assert model.anchor_embedder.out_features == 128
-    nac = TAX3D_paper(action_context=False)
+    nac = paper_network(action_context=False)
     assert nac.x_embedder.out_features == 128 and nac.action_embedder is None
 
 
@@ -109,7 +117,7 @@ def test_fresh_network_outputs_exactly_zero():
 
 def test_initialisation():
     torch.manual_seed(0)
-    model = TAX3D_paper()
+    model = paper_network()
     for block in model.blocks:
         assert (block.adaLN_modulation[-1].weight == 0).all() and (block.adaLN_modulation[-1].bias == 0).all()
         assert (block.self_attn.qkv.bias == 0).all() and block.self_attn.qkv.weight.abs().max() > 0
@@ -135,9 +143,7 @@ def test_gradients_reach_every_parameter_after_a_few_steps():
 
 
 def test_preset_parameter_counts():
-    paper = sum(p.numel() for p in TAX3D_paper().parameters())
-    cpu = sum(p.numel() for p in TAX3D_cpu().parameters())
-    print(f"TAX3D_paper: {paper:,} parameters; TAX3D_cpu: {cpu:,} parameters")
+    paper = sum(p.numel() for p in build_network(cfg.paper()).parameters())
+    cpu = sum(p.numel() for p in build_network(cfg.cpu()).parameters())
     assert 1.5e6 < paper < 3e6
     assert cpu < paper / 3
-    assert set(MODEL_PRESETS) >= {"paper", "cpu"}

@@ -332,35 +332,3 @@ class DiTPointCloudScene(_PointDiT):
         for block in self.blocks:
             h = block(h, c)  # (B, N+M, D)
         return self.final_layer(h, c)  # (B, N+M, out_channels)
-
-
-#################################################################################
-#                                  Presets                                      #
-#################################################################################
-
-
-def TAX3D_paper(**kw) -> DiTPointCloudCross:
-    # App. B.1: depth 5, 4 heads, hidden 128
-    return DiTPointCloudCross(**{"hidden_size": 128, "depth": 5, "num_heads": 4, **kw})
-
-
-def TAX3D_cpu(**kw) -> DiTPointCloudCross:
-    # half the width, depth 3: 0.34M vs 2.1M parameters, ~3x faster per batch-16, 512+512-point step on one CPU thread
-    return DiTPointCloudCross(**{"hidden_size": 64, "depth": 3, "num_heads": 4, **kw})
-
-
-def TAX3D_scene_paper(**kw) -> DiTPointCloudScene:
-    # SD/SP ablations at the paper's size
-    return DiTPointCloudScene(**{"hidden_size": 128, "depth": 5, "num_heads": 4, **kw})
-
-
-def TAX3D_scene_cpu(**kw) -> DiTPointCloudScene:
-    return DiTPointCloudScene(**{"hidden_size": 64, "depth": 3, "num_heads": 4, **kw})
-
-
-MODEL_PRESETS = {
-    "paper": TAX3D_paper,
-    "cpu": TAX3D_cpu,
-    "scene-paper": TAX3D_scene_paper,
-    "scene-cpu": TAX3D_scene_cpu,
-}
