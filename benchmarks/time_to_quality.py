@@ -25,7 +25,7 @@ from pathlib import Path
 
 from tax3d import provenance
 from tax3d.atomic import write_text
-from tax3d.train import read_log
+from tax3d.checkpoint import read_log
 
 
 def train_command(args, name: str, options: str) -> list[str]:

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from tax3d.data.format import save_demo
-from tax3d.train import read_log
+from tax3d.checkpoint import read_log
 
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH_ENV = ("WORLD_SIZE", "RANK", "LOCAL_RANK", "LOCAL_WORLD_SIZE", "MASTER_ADDR", "MASTER_PORT")

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from tax3d.atomic import write_text
-from tax3d.train import read_log
+from tax3d.checkpoint import read_log
 
 
 def success_table(splits: dict, paper: list[str] | None) -> list[str]:

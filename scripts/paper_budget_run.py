@@ -25,7 +25,7 @@ import torch
 
 from tax3d import provenance
 from tax3d.atomic import write_text
-from tax3d.train import read_log
+from tax3d.checkpoint import read_log
 
 # the share of the wall time left for training steps (validation, start-up and the final checkpoint take the rest)
 STEP_SHARE = 0.9

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from tax3d.atomic import write_text
-from tax3d.train import read_log
+from tax3d.checkpoint import read_log
 
 
 def read_curve(run: Path) -> dict:

@@ -14,7 +14,7 @@ from tax3d.baselines.dp3 import DP3, DP3Policy, is_dp3_checkpoint
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
 from tax3d.baselines.dp3.network import ConditionalUnet1D
-from tax3d.train import read_log as read_train_log
+from tax3d.checkpoint import read_log as read_train_log
 from tax3d.baselines.dp3.normalizer import MinMaxNormalizer
 from tax3d.baselines.dp3.scheduler import DDIM, squaredcos_cap_v2_betas
 from tax3d.cli import main

@@ -1,18 +1,24 @@
-"""The checkpoint directory shared by every model here: config.json + model.safetensors, checked in one line."""
+"""Checkpoints: a model folder (config.json + model.safetensors, checked in one line), a run's last/ and best/."""
 
 from __future__ import annotations
 
 import hashlib
 import json
+import shutil
+import tempfile
 from pathlib import Path
+
+import torch
 
 import torch.nn as nn
 from safetensors.torch import load_file
 
+from tax3d.atomic import write_text
 from tax3d.errors import UsageError
 
 CONFIG_NAME = "config.json"
 WEIGHTS_NAME = "model.safetensors"
+STATE_NAME = "training_state.pt"  # what resuming needs beside the weights (optimizer, step, generator states)
 
 
 class CheckpointError(UsageError):
@@ -69,3 +75,49 @@ def load_checked(module: nn.Module, state: dict, where: str = "weights") -> None
                        f"expected {tuple(expected[wrong[0]].shape)}")
         raise CheckpointError(f"{where}: weights do not match config.json ({detail})")
     module.load_state_dict(state)
+
+
+# --- a training run's folder: last/ and best/, written atomically, and its log ---------------------------------
+
+def save_checkpoint(out: Path, name: str, model: nn.Module, weights: dict, state: dict | None) -> None:
+    """Write OUT/name atomically: a temporary folder beside it, then two renames (the old one kept until then).
+    Weights that are not all finite are an error, never a checkpoint."""
+    broken = next((k for k, v in weights.items() if v.is_floating_point() and not torch.isfinite(v).all()), None)
+    if broken is not None:
+        raise UsageError(f"--out {out}: weight {broken} is not finite; expected finite weights, "
+                         f"{out / name} is left as it was")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=out))
+    tmp.chmod(0o755)
+    model.save_pretrained(tmp, state_dict=weights)
+    if state is not None:
+        torch.save(state, tmp / STATE_NAME)
+        (tmp / STATE_NAME).chmod(0o644)
+    final, old = out / name, out / f".{name}.old"
+    if old.exists():
+        shutil.rmtree(old)
+    if final.exists():
+        final.rename(old)
+    tmp.rename(final)
+    if old.exists():
+        shutil.rmtree(old)
+
+
+def find_last(out: Path) -> Path | None:
+    """OUT/last, or the previous one when a kill came between the two renames of save_checkpoint."""
+    for name in ("last", ".last.old"):
+        if (out / name / STATE_NAME).is_file():
+            return out / name
+    return None
+
+
+def read_log(path: Path) -> list[dict]:
+    """The records of a run's log.jsonl, one per logged step."""
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
+def truncate_log(path: Path, step: int) -> None:
+    """Drop log lines written after the checkpoint a run resumes from (they will be written again)."""
+    if not path.is_file():
+        return
+    lines = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= step]
+    write_text(path, "".join(line + "\n" for line in lines))

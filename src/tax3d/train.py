@@ -17,9 +17,7 @@ import copy
 import dataclasses
 import json
 import math
-import shutil
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,8 +32,7 @@ from torch.utils.data import DataLoader, Dataset, Sampler
 from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
-from tax3d.atomic import write_text
-from tax3d.checkpoint import read_weights
+from tax3d.checkpoint import STATE_NAME, find_last, read_log, read_weights, save_checkpoint, truncate_log
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
@@ -43,7 +40,6 @@ from tax3d.metrics import min_of_samples_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
 from tax3d.options import OutputFolder
 
-STATE_NAME = "training_state.pt"
 LONG_RUN_HOURS = 12  # a run planned longer than this is told so at its start
 
 
@@ -166,53 +162,6 @@ def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps
     best = [float(min_of_samples_rmse(p, g)) for p, g in zip(predictions, goals)]
     every = [float(rmse(p, g).mean()) for p, g in zip(predictions, goals)]
     return {"val_rmse": float(np.mean(best)), "val_rmse_mean": float(np.mean(every))}
-
-
-# --- checkpoints -----------------------------------------------------------------------------------------------
-
-
-def save_checkpoint(out: Path, name: str, model: Tax3D, weights: dict, state: dict | None) -> None:
-    """Write OUT/name atomically: a temporary folder beside it, then two renames (the old one kept until then).
-    Weights that are not all finite are an error, never a checkpoint."""
-    broken = next((k for k, v in weights.items() if v.is_floating_point() and not torch.isfinite(v).all()), None)
-    if broken is not None:
-        raise UsageError(f"--out {out}: weight {broken} is not finite; expected finite weights, "
-                         f"{out / name} is left as it was")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=out))
-    tmp.chmod(0o755)
-    model.save_pretrained(tmp, state_dict=weights)
-    if state is not None:
-        torch.save(state, tmp / STATE_NAME)
-        (tmp / STATE_NAME).chmod(0o644)
-    final, old = out / name, out / f".{name}.old"
-    if old.exists():
-        shutil.rmtree(old)
-    if final.exists():
-        final.rename(old)
-    tmp.rename(final)
-    if old.exists():
-        shutil.rmtree(old)
-
-
-def find_last(out: Path) -> Path | None:
-    """OUT/last, or the previous one when a kill came between the two renames of save_checkpoint."""
-    for name in ("last", ".last.old"):
-        if (out / name / STATE_NAME).is_file():
-            return out / name
-    return None
-
-
-def read_log(path: Path) -> list[dict]:
-    """The records of a run's log.jsonl, one per logged step."""
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-
-
-def truncate_log(path: Path, step: int) -> None:
-    """Drop log lines written after the checkpoint a run resumes from (they will be written again)."""
-    if not path.is_file():
-        return
-    lines = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= step]
-    write_text(path, "".join(line + "\n" for line in lines))
 
 
 # --- configuration ---------------------------------------------------------------------------------------------
