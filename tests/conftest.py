@@ -20,3 +20,16 @@ def generated(tmp_path_factory):
     out = tmp_path_factory.mktemp("demos")
     stats = generate(Args(task="hangproccloth-simple", split="unseen", num=1, out=out), progress=False)
     return out, stats
+
+
+@pytest.fixture
+def demos(tmp_path):
+    """Two small synthetic demonstrations (tests.test_model_api.synthetic_demo) in a folder."""
+    from tax3d.data.format import save_demo
+    from tests.test_model_api import synthetic_demo
+
+    folder = tmp_path / "demos"
+    folder.mkdir()
+    for i in range(2):
+        save_demo(folder / f"demo_{i}.npz", synthetic_demo(i))
+    return folder

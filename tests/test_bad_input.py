@@ -15,7 +15,6 @@ import pytest
 import torch
 
 from tax3d.cli import main
-from tax3d.data.format import save_demo
 from tax3d.model.tax3d import Tax3D
 
 from tests.test_model_api import synthetic_demo, tiny_model
@@ -33,15 +32,6 @@ def one_line_error(capsys, argv, *expected) -> str:
     for text in expected:
         assert text in err, err
     return err
-
-
-@pytest.fixture
-def demos(tmp_path):
-    folder = tmp_path / "demos"
-    folder.mkdir()
-    for i in range(2):
-        save_demo(folder / f"demo_{i}.npz", synthetic_demo(i))
-    return folder
 
 
 @pytest.fixture

@@ -24,15 +24,6 @@ TINY = ["--preset", "cpu", "--model.hidden_size", "32", "--model.depth", "2", "-
         "--train.val_samples", "2", "--train.val_demos", "0"]
 
 
-@pytest.fixture
-def demos(tmp_path):
-    folder = tmp_path / "demos"
-    folder.mkdir()
-    for i in range(2):
-        save_demo(folder / f"demo_{i}.npz", synthetic_demo(i))
-    return folder
-
-
 def read_log(out):
     return train.read_log(out / "log.jsonl")
 
