@@ -29,6 +29,7 @@ from tax3d.errors import UsageError
 from tax3d.metrics import MeanGoalBaseline, rmse
 from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
+from tax3d import options
 from tax3d.options import NonNegative, OutputFile, Positive
 
 
@@ -69,11 +70,7 @@ class Args:
 def run(args: Args) -> int:
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected a positive number")
-    for option, value in (("--out", args.out), ("--summary", args.summary)):
-        if value and Path(value).is_dir():
-            raise UsageError(f"{option} {value}: is a folder; expected a file path")
-        if value and any(p.exists() and not p.is_dir() for p in Path(value).parents):
-            raise UsageError(f"{option} {value}: part of its folder path is a file; expected folders")
+    options.check(args)  # --out and --summary writable, numbers in range, also when called from Python
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     device = pick_device(args.device)
