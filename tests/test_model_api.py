@@ -279,22 +279,59 @@ def test_mean_goal_baseline_random_cloths():
 
 @pytest.mark.parametrize("variant", ["cd", "cp"])
 def test_large_clouds_run_the_network_on_a_sample_and_carry_its_displacements(variant):
-    """Above max_points the network sees a farthest-point sample; every input point keeps its place in the output
-    and moves by the displacement of its nearest sampled point."""
+    """Above max_points the network sees a farthest-point sample; every input point keeps its place in the output,
+    a sampled point keeps its own predicted displacement and every other one moves by a weighted mean of those of
+    its nearest sampled points, nearer ones weighing more."""
+    from scipy.spatial import cKDTree
+
+    from tax3d.model.tax3d import CARRY_NEIGHBOURS
+
     model = tiny_model(variant)
     action, anchor, _ = scene(0, n=200)
     goals = model.predict(action, anchor, num_samples=2, seed=4, max_points=20)
     assert goals.shape == (2, 200, 3) and np.isfinite(goals).all()
     displacement = goals[0] - action
-    close = np.linalg.norm(displacement[:, None] - displacement[None], axis=-1) < 1e-3
-    groups = {int(np.argmax(row)) for row in close}  # the first point of each group of equal displacements
-    assert len(groups) == 20  # twenty sampled points, each lending its displacement to its neighbours
-    # each group is a neighbourhood: its points lie nearer to each other than to most of the cloud
-    spread = np.mean([np.linalg.norm(action[close[g]] - action[close[g]].mean(0), axis=1).mean() for g in groups])
-    assert spread < 0.5 * np.linalg.norm(action - action.mean(0), axis=1).mean()
+    # the sampled points: those whose displacement no other point's mean reproduces exactly are 20 distinct ones
+    frames = model._frames(action, anchor, model._generator(None, 4), max_points=20)
+    sampled = frames["carry"]["sampled"].numpy()
+    index = cKDTree(action).query(sampled)[1]
+    assert len(set(index.tolist())) == 20
+    own = displacement[index]
+    distance, nearest = cKDTree(sampled).query(action, k=CARRY_NEIGHBOURS)
+    weight = 1 / np.maximum(distance, 1e-9)
+    weight[distance < 1e-9] = 1e9
+    expected = (own[nearest] * (weight / weight.sum(1, keepdims=True))[..., None]).sum(1)
+    np.testing.assert_allclose(displacement, expected, rtol=1e-4, atol=1e-3)
+    # each point's displacement lies within the span of its neighbours' (a mean, not an extrapolation)
+    low, high = own[nearest].min(1), own[nearest].max(1)
+    assert np.all(displacement >= low - 1e-3) and np.all(displacement <= high + 1e-3)
     # no limit: the network sees every point (its training size by default)
     whole = model.predict(action, anchor, seed=4, max_points=0)
     np.testing.assert_allclose(whole, model.predict(action, anchor, seed=4, max_points=200), atol=1e-5)
     assert len(np.unique((whole[0] - action).round(3), axis=0)) > 150
     with pytest.raises(ValueError, match="max_points"):
         model.predict(action, anchor, max_points=-1)
+
+
+def test_predict_scenes_reports_progress_once_per_denoising_step(monkeypatch):
+    """The CLI's bar advances once per denoising step of every batch, so a long prediction shows it is alive."""
+    import tqdm.auto
+
+    bars = []
+
+    class Bar:
+        def __init__(self, total=None, disable=False, **kwargs):
+            self.total, self.disable, self.n, self.closed = total, disable, 0, False
+            bars.append(self)
+
+        def update(self, n=1):
+            self.n += n
+
+        def close(self):
+            self.closed = True
+
+    monkeypatch.setattr(tqdm.auto, "tqdm", Bar)
+    model = tiny_model("cd")
+    scenes = [scene(i)[:2] for i in range(3)]
+    model.predict_scenes(scenes, num_samples=2, steps=5, batch_scenes=2, progress=True)
+    assert [(b.total, b.n, b.closed, b.disable) for b in bars] == [(10, 10, True, False)]  # 2 batches x 5 steps

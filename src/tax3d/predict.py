@@ -59,8 +59,8 @@ class Args:
     threads: Annotated[int, NonNegative] = 0
     """torch CPU threads (0: torch's default)"""
     max_points: Annotated[Optional[int], NonNegative] = None
-    """the network runs on at most this many action points, the others taking the displacement of their nearest
-    one (default: the number it was trained on; 0: every point)"""
+    """the network runs on at most this many action points, the others taking the distance-weighted displacement of
+    their nearest sampled ones (default: the number it was trained on; 0: every point)"""
     batch_scenes: Annotated[int, Positive] = 8
     """demos denoised together in one batch"""
     device: str = "cpu"

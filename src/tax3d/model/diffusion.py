@@ -304,21 +304,26 @@ class GaussianDiffusion:
                 device = generator.device if generator is not None else "cpu"
             x = self._noise_like(tuple(shape), generator, device)
         yield {"t": self.num_timesteps, "sample": x, "pred_xstart": None}
-        steps = range(self.num_timesteps - 1, -1, -1)
-        if progress:
+        bar = None if progress is None or isinstance(progress, bool) else progress  # an open bar: one update a step
+        if progress is True:
             from tqdm.auto import tqdm
 
-            steps = tqdm(steps, desc="denoising", leave=False)
-        for i in steps:
+            bar = tqdm(total=self.num_timesteps, desc="denoising", unit="step", leave=False)
+        for i in range(self.num_timesteps - 1, -1, -1):
             t = torch.full((x.shape[0],), i, device=x.device, dtype=torch.long)
             with torch.no_grad():
                 out = step(model_fn, x, t, generator=generator, **kw)
             x = out["sample"]
+            if bar is not None:
+                bar.update(1)
             yield {"t": i, "sample": x, "pred_xstart": out["pred_xstart"]}
+        if progress is True:
+            bar.close()
 
     def p_sample_loop_progressive(self, model_fn: ModelFn, shape, noise=None, generator=None, device=None,
-                                  progress: bool = False) -> Iterator[dict]:
-        """Yields {"t", "sample", "pred_xstart"}: first x_T (t = T), then x_{t} after each step down to t = 0."""
+                                  progress=False) -> Iterator[dict]:
+        """Yields {"t", "sample", "pred_xstart"}: first x_T (t = T), then x_{t} after each step down to t = 0.
+        progress: True for a bar of its own, or an open tqdm bar to advance once per step."""
         yield from self._progressive(self.p_sample, model_fn, shape, noise, generator, device, progress)
 
     def ddim_sample_loop_progressive(self, model_fn: ModelFn, shape, noise=None, generator=None, device=None,

@@ -28,6 +28,9 @@ from tax3d.model.diffusion import GaussianDiffusion, linear_betas
 from tax3d.model.dit import DiTPointCloudCross, DiTPointCloudScene
 from tax3d.model.variants import variant_spec
 
+CARRY_NEIGHBOURS = 4  # sampled points whose displacements an unsampled action point interpolates
+
+
 def build_network(config: cfg.Config) -> nn.Module:
     spec = variant_spec(config.model.variant)
     m = config.model
@@ -105,7 +108,7 @@ class Tax3D(nn.Module):
 
     @torch.no_grad()
     def sample(self, action: torch.Tensor, anchor: torch.Tensor, steps: int | None = None, sampler: str | None = None,
-               generator: torch.Generator | None = None, return_trajectory: bool = False, progress: bool = False):
+               generator: torch.Generator | None = None, return_trajectory: bool = False, progress=False):
         """Model outputs (B, N, 3) in the variant's frame for inputs in that frame (B, N, 3), (B, M, 3).
 
         With return_trajectory, also (S + 1, B, N, 3): x_T, ..., x_0 (one entry for RD/RP)."""
@@ -146,8 +149,8 @@ class Tax3D(nn.Module):
 
     def _frames(self, action_points, anchor_points, generator: torch.Generator, max_points: int | None = None) -> dict:
         """The network's inputs for one scene. An action cloud of more than max_points (default: the training
-        size; 0: no limit) is farthest-point sampled to it; "carry" then maps each input point to its nearest
-        sampled point, whose predicted displacement it takes (`_carry`)."""
+        size; 0: no limit) is farthest-point sampled to it; "carry" then holds, for each input point, its
+        CARRY_NEIGHBOURS nearest sampled points and their inverse-distance weights (`_carry`)."""
         action = self._points(action_points, "action_points")
         anchor = self._points(anchor_points, "anchor_points")
         k = self.config.data.num_anchor_points
@@ -158,8 +161,14 @@ class Tax3D(nn.Module):
         if 0 < limit < action.shape[0] and not self.spec.scene:
             full = action
             action = action[farthest_point_sample(action, limit, start=generator)]
-            _, nearest = cKDTree(action.cpu().numpy()).query(full.cpu().numpy())
-            carry = {"full": full, "sampled": action, "nearest": torch.as_tensor(nearest, device=full.device)}
+            k = min(CARRY_NEIGHBOURS, limit)
+            distance, nearest = cKDTree(action.cpu().numpy()).query(full.cpu().numpy(), k=k)
+            distance, nearest = distance.reshape(len(full), k), nearest.reshape(len(full), k)
+            weight = 1.0 / np.maximum(distance, 1e-9)
+            weight[distance < 1e-9] = 1e9  # a point that was sampled keeps its own displacement
+            weight /= weight.sum(1, keepdims=True)
+            carry = {"full": full, "sampled": action, "nearest": torch.as_tensor(nearest, device=full.device),
+                     "weight": torch.as_tensor(weight, dtype=full.dtype, device=full.device)}
         frames = frame_inputs(action.double(), anchor.double(), self.spec)
         frames = {key: value.float() for key, value in frames.items()}
         return {**frames, "carry": carry} if carry is not None else frames
@@ -167,11 +176,12 @@ class Tax3D(nn.Module):
     @staticmethod
     def _carry(goals: torch.Tensor, carry: dict | None) -> torch.Tensor:
         """World goals (..., k, 3) of the sampled points -> (..., N, 3) for every input point: each point moves by
-        the displacement of its nearest sampled point."""
+        the inverse-distance-weighted mean displacement of its nearest sampled points."""
         if carry is None:
             return goals
         displacement = goals - carry["sampled"]
-        return carry["full"] + displacement[..., carry["nearest"], :]
+        neighbours = displacement[..., carry["nearest"], :]  # (..., N, CARRY_NEIGHBOURS, 3)
+        return carry["full"] + (neighbours * carry["weight"][..., None]).sum(-2)
 
     def _generator(self, generator: torch.Generator | None, seed: int | None) -> torch.Generator:
         if generator is not None:
@@ -188,7 +198,7 @@ class Tax3D(nn.Module):
 
         Any N works, and the goal keeps the order of the action points. The network runs on at most
         `max_points` of them (default: the number it was trained on; 0: all), farthest-point sampled; every other
-        point takes the displacement of its nearest sampled point. The anchor is downsampled by FPS to the trained
+        point moves by the inverse-distance-weighted displacement of its nearest sampled points. The anchor is downsampled by FPS to the trained
         number of points. The samples are denoised together, in one batch. numpy in, numpy out; tensors in,
         tensors out. With return_trajectory, also the denoising trajectory in the world frame, (S + 1, num_samples,
         N, 3). `seed` makes a fresh generator; `generator` is used as given. `progress` shows a bar over the
@@ -226,8 +236,7 @@ class Tax3D(nn.Module):
         from tqdm.auto import tqdm
 
         num_samples, batch_scenes = _positive(num_samples, "num_samples"), _positive(batch_scenes, "batch_scenes")
-        if self.spec.diffusion:
-            self.sampling(steps, sampler)
+        steps_per_batch = self.sampling(steps, sampler)[0] if self.spec.diffusion else 1
         generator = self._generator(None, seed)
         frames = [self._frames(action, anchor, generator, max_points) for action, anchor in scenes]
         carries = [f.pop("carry", None) for f in frames]
@@ -238,13 +247,20 @@ class Tax3D(nn.Module):
         scale = self.config.data.target_scale
         chunks = [indices[start:start + batch_scenes] for indices in by_size.values()
                   for start in range(0, len(indices), batch_scenes)]
-        for chunk in tqdm(chunks, desc="predict", unit="batch", disable=not progress, leave=False):
+        # one bar over every denoising step of every batch: a long prediction shows its progress step by step
+        bar = tqdm(total=len(chunks) * steps_per_batch, desc=f"predict ({len(chunks)} batches)", unit="step",
+                   disable=not progress, leave=False)
+        for chunk in chunks:
             stacked = {k: torch.stack([frames[i][k] for i in chunk]).repeat_interleave(num_samples, 0)
                        for k in frames[chunk[0]]}  # (C * K, ...)
-            out = self.sample(stacked["action"], stacked["anchor"], steps, sampler, generator)
+            out = self.sample(stacked["action"], stacked["anchor"], steps, sampler, generator,
+                              progress=bar if progress and self.spec.diffusion else False)
+            if not self.spec.diffusion:
+                bar.update(1)
             goals = to_world(out, stacked, self.spec, scale).reshape(len(chunk), num_samples, -1, 3)
             for i, g in zip(chunk, goals):
                 results[i] = self._carry(g, carries[i]).cpu().numpy()
+        bar.close()
         return results
 
     # --- checkpoints -----------------------------------------------------------------------------------------------
