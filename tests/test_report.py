@@ -174,3 +174,46 @@ def test_empty_episodes_still_write_the_table(tmp_path):
     assert "plotly-graph-div" not in page and "0.123" in page
     assert (tmp_path / "empty" / "results.md").is_file()
     assert (tmp_path / "empty" / "images" / "overview.png").is_file()
+
+
+CHROMIUM = next((p for p in ("/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome")
+                 if Path(p).exists()), None)
+# After layout, the page lists each episode row's plot and picture boxes (left, right, width) in <pre id="layout">.
+LAYOUT_PROBE = """<script>
+window.addEventListener("load", () => setTimeout(() => {
+  const box = (el) => { const r = el.getBoundingClientRect(); return [r.left, r.right, r.width, r.height]; };
+  const rows = [...document.querySelectorAll(".episode-row")].map((row) => ({
+    plot: box(row.querySelector(".figure").firstElementChild || row.querySelector(".figure")),
+    picture: box(row.querySelector("img") || row.lastElementChild), page: document.documentElement.clientWidth}));
+  const pre = document.createElement("pre"); pre.id = "layout"; pre.textContent = JSON.stringify(rows);
+  document.body.appendChild(pre);
+}, 300));
+</script>"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="no headless Chromium on this machine")
+@pytest.mark.parametrize("width", [1280, 820])
+def test_the_released_cloth_picture_sits_beside_the_3d_plot_in_a_browser(report, tmp_path, width):
+    """Rendered by headless Chromium: in every episode row the plot ends where the picture begins, and the picture
+    is shown whole inside the window (plotly once drew 1,250 px into an 834 px box, over the picture)."""
+    import json
+    import subprocess
+
+    probe = report.parent / f"probe_{width}.html"
+    probe.write_text(report.read_text().replace("</body>", LAYOUT_PROBE + "</body>"))
+    dom = subprocess.run(
+        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         f"--user-data-dir={tmp_path / 'profile'}", f"--window-size={width},1000", "--virtual-time-budget=10000",
+         "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=300).stdout
+    found = re.search(r'<pre id="layout">(.*?)</pre>', dom, re.S)
+    assert found, "the page never finished its layout"
+    rows = json.loads(found.group(1).replace("&quot;", '"'))
+    assert len(rows) == MAX_FIGURES
+    for row in rows:
+        plot_left, plot_right, plot_width, plot_height = row["plot"]
+        picture_left, picture_right, picture_width, _ = row["picture"]
+        assert plot_width > 100 and plot_height > 100  # the plot is drawn
+        assert picture_width > 100 and plot_right <= picture_left + 1  # beside the plot, not under it
+        assert picture_right <= row["page"] + 1  # inside the window
