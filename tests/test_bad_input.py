@@ -17,7 +17,7 @@ import torch
 from tax3d.cli import main
 from tax3d.model.tax3d import Tax3D
 
-from tests.test_model_api import synthetic_demo, tiny_model
+from tests.conftest import synthetic_demo, tiny_model
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "checkpoints" / "tax3d-cd-simple"

@@ -15,41 +15,14 @@ from tax3d.data.dataset import (
     to_world,
     variant_spec,
 )
-from tax3d.data.format import DemoError, save_demo
+from tax3d.data.format import DemoError
 from tax3d.errors import UsageError
 from tax3d.geometry import farthest_point_sample, rotate_z
 
+from tests.conftest import write_demos
+
 OFFICIAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "tax3d-official"
 NA, NB = 16, 24  # points sampled per cloud in these tests
-
-
-def synthetic_demo(rng, n=40, m=60):
-    """A cloth-like action cloud, a hanger-like anchor far from the origin, and a goal near the anchor."""
-    action = rng.normal(size=(n, 3)) * [2.0, 0.1, 2.0] + [0.0, 5.0, 8.0]
-    anchor = rng.normal(size=(m, 3)) * [0.5, 0.5, 2.0] + [4.0, -6.0, 3.0]
-    goal = rng.normal(size=(n, 3)) * [2.0, 0.5, 1.0] + [4.5, -6.5, 8.0]
-    return {
-        "action_pc": action,
-        "action_seg": np.ones(n),
-        "anchor_pc": anchor,
-        "anchor_seg": np.zeros(m, dtype=np.int32),
-        "flow": goal - action,
-        "speed_factor": np.array(1.0),
-        "rot": np.zeros(3),
-        "trans": np.zeros(3),
-        "deform_params": {"num_holes": 1, "node_density": 25, "w": 1.0, "h": 1.0,
-                          "holes": [{"x0": 8, "x1": 16, "y0": 9, "y1": 13}]},
-        "anchors": {0: {"pos": np.zeros(3), "vertices": [0]}},
-    }
-
-
-def write_demos(folder, count, seed=0):
-    folder.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(seed)
-    demos = [synthetic_demo(rng) for _ in range(count)]
-    for i, demo in enumerate(demos):
-        save_demo(folder / f"demo_{i}.npz", demo)
-    return demos
 
 
 @pytest.fixture

@@ -21,8 +21,8 @@ from tax3d.errors import UsageError
 from tax3d.model.diffusion import GaussianDiffusion
 from tax3d.model.tax3d import Tax3D
 
-from tests.test_model_api import synthetic_demo, tiny_model
-from tests.test_train import TINY, read_log
+from tests.conftest import synthetic_demo, tiny_model
+from tests.conftest import TINY, read_log
 
 pytestmark = pytest.mark.skipif(
     not (torch.distributed.is_available() and torch.distributed.is_gloo_available()),

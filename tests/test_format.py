@@ -9,21 +9,7 @@ import pytest
 from tax3d.data.format import DemoError, list_demos, load_demo, save_demo
 from tax3d.sim.cloth import SIMPLE_CLOTH
 
-
-def make_demo(n=10, m=20, seed=0):
-    rng = np.random.default_rng(seed)
-    return {
-        "action_pc": rng.normal(size=(n, 3)),
-        "action_seg": np.ones(n),
-        "anchor_pc": rng.normal(size=(m, 3)),
-        "anchor_seg": np.zeros(m, dtype=np.int32),
-        "flow": rng.normal(size=(n, 3)),
-        "speed_factor": np.array(1.0),
-        "rot": np.array([0.0, 0.0, 0.3]),
-        "trans": np.array([1.0, -2.0, 0.0]),
-        "deform_params": dict(SIMPLE_CLOTH),
-        "anchors": {3: {"pos": np.array([3.0, 5.0, 11.0]), "vertices": [24]}},
-    }
+from tests.conftest import make_demo
 
 
 def test_round_trip(tmp_path):

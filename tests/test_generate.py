@@ -4,7 +4,7 @@ from tax3d.cli import main
 from tax3d.data.format import is_valid_demo, load_demo, save_demo
 from tax3d.sim.cloth import SIMPLE_CLOTH
 from tax3d.sim.generate import Args, generate
-from tests.test_format import make_demo
+from tests.conftest import make_demo
 
 
 def one_line_error(capsys, argv):

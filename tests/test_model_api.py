@@ -8,52 +8,12 @@ import numpy as np
 import pytest
 import torch
 
-from tax3d import config as cfg
 from tax3d.cli import main
 from tax3d.data.format import save_demo
 from tax3d.metrics import MeanGoalBaseline, coverage_rmse, min_of_samples_rmse, precision_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
 
-N, M = 24, 40  # action and anchor points of the synthetic scenes
-
-
-def tiny_config(variant: str = "cd", **data) -> cfg.Config:
-    config = cfg.Config(
-        model=cfg.ModelConfig(variant=variant, hidden_size=16, depth=1, num_heads=2),
-        diffusion=cfg.DiffusionConfig(num_timesteps=100, sample_steps=5),
-        data=cfg.DataConfig(**{"num_action_points": 32, "num_anchor_points": 24, **data}),
-    )
-    return cfg.validate(config)
-
-
-def tiny_model(variant: str = "cd", seed: int = 0, **data) -> Tax3D:
-    """A tiny model with every weight random: zero-initialised layers would hide what the inputs do."""
-    torch.manual_seed(seed)
-    model = Tax3D(tiny_config(variant, **data))
-    with torch.no_grad():
-        for p in model.parameters():
-            p.normal_(0.0, 0.1)
-    return model.eval()
-
-
-def scene(seed: int = 0, n: int = N, m: int = M):
-    rng = np.random.default_rng(seed)
-    action = rng.normal(size=(n, 3)) * [2.0, 0.1, 2.0] + [0.0, 5.0, 8.0]
-    anchor = rng.normal(size=(m, 3)) * [0.5, 0.5, 2.0] + [4.0, -6.0, 3.0]
-    goal = rng.normal(size=(n, 3)) * [2.0, 0.5, 1.0] + [4.5, -6.5, 8.0]
-    return action, anchor, goal
-
-
-def synthetic_demo(seed: int = 0, n: int = N, m: int = M) -> dict:
-    action, anchor, goal = scene(seed, n, m)
-    return {
-        "action_pc": action, "action_seg": np.ones(n), "anchor_pc": anchor,
-        "anchor_seg": np.zeros(m, dtype=np.int32), "flow": goal - action, "speed_factor": np.array(1.0),
-        "rot": np.zeros(3), "trans": np.zeros(3),
-        "deform_params": {"num_holes": 1, "node_density": 25, "w": 1.0, "h": 1.0,
-                          "holes": [{"x0": 8, "x1": 16, "y0": 9, "y1": 13}]},
-        "anchors": {0: {"pos": np.zeros(3), "vertices": [0]}},
-    }
+from tests.conftest import N, scene, synthetic_demo, tiny_model
 
 
 @pytest.mark.parametrize("variant", ["cd", "cp", "cd_nac", "cp_nac", "rd", "rp", "sd", "sp"])

@@ -13,9 +13,9 @@ from tax3d.model.tax3d import Tax3D
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
-sys.path.insert(0, str(ROOT / "tests"))
 import sampler_check  # noqa: E402
-from test_dataset import write_demos  # noqa: E402
+
+from tests.conftest import write_demos  # noqa: E402
 
 
 def test_rows_per_checkpoint_and_sampler(tmp_path):

@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from tests.test_model_api import tiny_model
+from tests.conftest import tiny_model
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -20,9 +20,14 @@ def test_polygon_check_inside_and_outside():
     loop = np.arange(len(cloth))
     assert polygon_check(cloth, loop, goal)
     assert not polygon_check(square_loop((3, 0)), loop, goal)
-    # order matters: a shuffled loop is a different (self-intersecting) polygon
-    rng = np.random.default_rng(0)
-    assert isinstance(polygon_check(cloth, rng.permutation(loop), goal), bool)
+    # order matters: the four corners taken crosswise make an hourglass (two triangles meeting at the centre),
+    # which holds points above and below the centre but not one beside it
+    corners = square_loop((0, 0), n=1)
+    beside, above = np.array([0.5, 0.0, 8.2]), np.array([0.0, 0.5, 8.2])
+    assert polygon_check(corners, np.arange(4), beside) and polygon_check(corners, np.arange(4), above)
+    hourglass = np.array([0, 1, 3, 2])
+    assert not polygon_check(corners, hourglass, beside)
+    assert polygon_check(corners, hourglass, above)
 
 
 def test_centroid_check_threshold():

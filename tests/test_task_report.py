@@ -64,7 +64,7 @@ def test_keep_summary_bad_input(tmp_path):
 
 def test_mode_spread(tmp_path):
     from tax3d.data.format import save_demo
-    from tests.test_model_api import synthetic_demo
+    from tests.conftest import synthetic_demo
 
     folder = tmp_path / "data" / "unseen"
     folder.mkdir(parents=True)

@@ -16,17 +16,7 @@ from tax3d.data.format import load_demo, save_demo
 from tax3d.metrics import rmse
 from tax3d.model.tax3d import Tax3D
 
-from tests.test_model_api import synthetic_demo
-
-TINY = ["--preset", "cpu", "--model.hidden_size", "32", "--model.depth", "2", "--model.num_heads", "2",
-        "--data.num_action_points", "16", "--data.num_anchor_points", "24", "--data.train_size", "16",
-        "--train.batch_size", "8", "--train.threads", "1", "--train.num_workers", "0",
-        "--train.val_samples", "2", "--train.val_demos", "0"]
-
-
-def read_log(out):
-    return train.read_log(out / "log.jsonl")
-
+from tests.conftest import TINY, read_log, synthetic_demo
 
 def test_overfits_one_demonstration(tmp_path, capsys):
     folder = tmp_path / "one"
@@ -220,5 +210,5 @@ def test_default_preset_fits_the_machine_and_long_runs_are_told(tmp_path, demos,
     expected = "paper" if torch.cuda.is_available() else "cpu"
     assert f"--preset not given: using {expected}" in err
     assert "note: 30 steps at this machine's rate take about" in err
-    assert f"trained 30 steps in" in err and "weights in" in err  # the closing line
+    assert "trained 30 steps in" in err and "weights in" in err  # the closing line
     assert cfg.load(tmp_path / "run" / "config.json").train.lr == cfg.preset(expected).train.lr
