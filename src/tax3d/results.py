@@ -244,7 +244,8 @@ class Page:
             lines += ["## Coverage and precision RMSE", "", self.fill(spec["sets_note"]), "",
                       *fold("Coverage and precision RMSE of every row", self.sets_table())]
         if self.spec.get("spread_note"):
-            lines += ["## How far a fixed goal gets", "", self.fill(spec["spread_note"]), "", *self.spread()]
+            title = spec.get("spread_title", "How far a fixed goal gets")
+            lines += [f"## {title}", "", self.fill(spec["spread_note"]), "", *self.spread()]
         if self.curves:
             lines += ["## Validation RMSE over training", "", *fold("The validation curves", self.curve_table())]
         lines += ["## Commands", "", "The commands that made each row, the machine and the date:", "",
