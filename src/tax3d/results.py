@@ -284,10 +284,8 @@ class Page:
         fig.savefig(out, dpi=110, format="png", metadata={"Software": None})
         return out.getvalue()
 
-    def readme_row(self) -> str | None:
-        best = self.spec.get("readme")
-        if not best:
-            return None
+    def readme_row(self) -> str:
+        best = self.spec["readme"]
         d, paper = self.data[best["row"]], self.paper["rows"][best["paper"]]
         ours = " / ".join(_cell(d.get(k, {}).get("success_rate"), "{:.2f}") for k in ("unseen", "ood"))
         theirs = " / ".join(f"{paper['success'][SPLITS.index(k)]:.2f}" for k in ("unseen", "ood"))
@@ -301,7 +299,8 @@ def fold(summary: str, lines: list[str]) -> list[str]:
 
 
 def readme_table(pages: list[Page]) -> str:
-    rows = [r for r in (p.readme_row() for p in pages) if r]
+    pages = sorted((p for p in pages if p.spec.get("readme")), key=lambda p: p.spec["readme"]["order"])
+    rows = [p.readme_row() for p in pages]
     return "\n".join(["| task | our success, unseen / ood | the paper's | page |", "| --- | --- | --- | --- |",
                       *rows])
 
