@@ -4,6 +4,13 @@ Each page is a TOML file in docs/results/pages/: its rows (label, the kept JSON 
 it), the paper's rows it sets beside them (docs/results/paper.toml) and its notes, markdown in which every number
 is a `{source.key.key}` placeholder filled from a kept JSON. The README's results table is built from the same
 declarations, between `<!-- results -->` and `<!-- /results -->`.
+
+A declaration holds `title`, `task` (its key in paper.toml), `verdict`, `definitions`, `headline` (at most 8 row
+ids or `paper:ROW`), optional `readme`, `setup`, `sets`, `sets_note`, `spread_note`, and arrays of tables:
+`row` (id, label, summary, optional paper, group = "ablation", made, config), `curve`, `source` (other kept JSON
+the notes cite), `note` and `ablation_note` (title, text, optional fold). `{id.split.metric}` reads a row's split
+(`success` for success_rate), `{id.key.key}` any key of a kept JSON, `{paper.ROW.metric.split}` the paper's table;
+`{...:.3f}` formats.
 """
 
 from __future__ import annotations
@@ -66,6 +73,8 @@ class Page:
         except tomllib.TOMLDecodeError as err:
             raise UsageError(f"{file}: not valid TOML ({err})") from None
         self.paper_all, self.paper = paper, paper.get(self.spec.get("task", ""), {"rows": {}})
+        if len(self.spec.get("headline", ())) > 8:
+            raise UsageError(f"{file.name}: headline has {len(self.spec['headline'])} rows; expected at most 8")
         self.rows = self.spec.get("row", [])
         self.curves = self.spec.get("curve", [])
         self.data = {}
@@ -189,8 +198,9 @@ class Page:
             else:
                 offset = ", ".join(f"{v:g}" for v in d.get("offset", ()))
                 how = f"`{d['command']}`" + (f" (gripper-target offset ({offset}))" if offset else "")
+            config = f" Configuration: [{row['config']}]({row['config']})." if row.get("config") else ""
             lines.append(f"- **{row['label']}** ([{row['summary']}]({row['summary']})):{made} {how}, on "
-                         f"{d['machine']}, {d['date']}.")
+                         f"{d['machine']}, {d['date']}.{config}")
         for c in self.curves:
             d = self.data[c["id"]]
             lines.append(f"- curve **{c['label']}** ([{c['summary']}]({c['summary']})): the run `{d['run']}`.")
