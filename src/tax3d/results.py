@@ -6,9 +6,9 @@ is a `{source.key.key}` placeholder filled from a kept JSON. The README's result
 declarations, between `<!-- results -->` and `<!-- /results -->`.
 
 A declaration holds `title`, `task` (its key in paper.toml), `verdict`, `definitions`, `headline` (at most 8 row
-ids or `paper:ROW`), optional `readme`, `setup`, `sets`, `sets_note`, `spread_note`, and arrays of tables:
-`row` (id, label, summary, optional paper, group = "ablation", made, config), `curve`, `source` (other kept JSON
-the notes cite), `note` and `ablation_note` (title, text, optional fold). `{id.split.metric}` reads a row's split
+ids or `paper:ROW`), optional `readme`, `setup`, `sets`, `sets_note`, `spread_note`, and arrays of tables: `row`
+(id, label, summary, optional paper, group = "ablation", made, config, shipped), `curve`, `source` (other kept
+JSON the notes cite), `note` and `ablation_note` (title, text, optional fold). `{id.split.metric}` reads a row's split
 (`success` for success_rate), `{id.key.key}` any key of a kept JSON, `{paper.ROW.metric.split}` the paper's table;
 `{...:.3f}` formats.
 """
@@ -199,6 +199,7 @@ class Page:
                 offset = ", ".join(f"{v:g}" for v in d.get("offset", ()))
                 how = f"`{d['command']}`" + (f" (gripper-target offset ({offset}))" if offset else "")
             config = f" Configuration: [{row['config']}]({row['config']})." if row.get("config") else ""
+            config += f" Shipped as `{row['shipped']}`." if row.get("shipped") else ""
             lines.append(f"- **{row['label']}** ([{row['summary']}]({row['summary']})):{made} {how}, on "
                          f"{d['machine']}, {d['date']}.{config}")
         for c in self.curves:
