@@ -16,6 +16,7 @@ COMMANDS = {
     "eval": ("tax3d.evaluate", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
     "benchmark": ("tax3d.benchmark", "generate, train and evaluate a task for a list of variants, resumable"),
     "demo": ("tax3d.demo", "the main job on the embedded default"),
+    "results": ("tax3d.results", "build the result pages of docs/results/ from their declarations, or --check them"),
 }
 
 
