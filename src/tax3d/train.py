@@ -32,7 +32,7 @@ from torch.utils.data import DataLoader, Dataset, Sampler
 from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
-from tax3d.checkpoint import STATE_NAME, find_last, read_log, read_weights, save_checkpoint, truncate_log
+from tax3d.checkpoint import STATE_NAME, find_last, read_weights, save_checkpoint, truncate_log
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
