@@ -95,6 +95,20 @@ def make_demo(n: int = 10, m: int = 20, seed: int = 0) -> dict:
     }
 
 
+def one_line_error(capsys, argv, *expected) -> str:
+    """Run the CLI on argv; it must exit 2 with one line on stderr (no traceback) holding every expected text."""
+    from tax3d.cli import main
+
+    code = main(list(map(str, argv)))
+    err = "\n".join(line for line in capsys.readouterr().err.replace("\r", "\n").splitlines()
+                    if line.strip() and "it/s]" not in line)  # progress bars aside
+    assert code == 2, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    for text in expected:
+        assert text in err, err
+    return err
+
+
 def read_log(out: Path) -> list[dict]:
     """The records of a run's log.jsonl."""
     from tax3d.checkpoint import read_log as read_records

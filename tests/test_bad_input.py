@@ -17,21 +17,11 @@ import torch
 from tax3d.cli import main
 from tax3d.model.tax3d import Tax3D
 
-from tests.conftest import synthetic_demo, tiny_model
+from tests.conftest import one_line_error, synthetic_demo, tiny_model
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "checkpoints" / "tax3d-cd-simple"
 
-
-def one_line_error(capsys, argv, *expected) -> str:
-    code = main(list(map(str, argv)))
-    err = "\n".join(line for line in capsys.readouterr().err.replace("\r", "\n").splitlines()
-                    if line.strip() and "it/s]" not in line)  # progress bars aside
-    assert code == 2, err
-    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
-    for text in expected:
-        assert text in err, err
-    return err
 
 
 @pytest.fixture

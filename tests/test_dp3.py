@@ -22,6 +22,8 @@ from tax3d.data.format import save_demo
 from tax3d.errors import UsageError
 from tax3d.sim.cloth import SIMPLE_CLOTH
 
+from tests.conftest import one_line_error
+
 T, N_CLOTH, N_ANCHOR = 10, 24, 20  # steps and stored points of the synthetic demos
 
 
@@ -233,12 +235,6 @@ def test_train_command_writes_a_checkpoint_and_resumes_exactly(tmp_path, demos, 
     for (name, a), b in zip(model.state_dict().items(), resumed.state_dict().values()):
         assert torch.allclose(a, b, atol=1e-6), name
 
-
-def one_line_error(capsys, argv):
-    code = main(argv)
-    err = capsys.readouterr().err.strip()
-    assert code == 2 and "\n" not in err and "Traceback" not in err, err
-    return err
 
 
 def test_bad_inputs(tmp_path, capsys):

@@ -13,6 +13,8 @@ from tax3d.evaluate import Args, EvalJob, evaluate, format_table, run_jobs, summ
 from tax3d.model.tax3d import Tax3D
 from tax3d.sim.cloth import SIMPLE_CLOTH
 
+from tests.conftest import one_line_error
+
 
 def tiny_checkpoint(path, variant="cd", **data):
     torch.manual_seed(0)
@@ -86,12 +88,6 @@ def test_coverage_and_precision_over_a_clothes_goals():
     assert table["precision_rmse"] == pytest.approx(np.sqrt(3) * 0.1 / 2)
 
 
-def one_line_error(capsys, argv):
-    code = main(argv)
-    err = capsys.readouterr().err.strip()
-    assert code == 2 and "\n" not in err and "Traceback" not in err, err
-    return err
-
 
 def test_bad_inputs(capsys, checkpoint, tmp_path):
     assert "no such checkpoint" in one_line_error(capsys, ["eval", "--checkpoint", str(tmp_path / "nope")])
@@ -158,3 +154,39 @@ def test_sampler_reaches_the_jobs_and_the_model(checkpoint):
         assert np.allclose(policy.first_prediction, expected)
         goals[sampler] = policy.first_prediction
     assert not np.allclose(goals["ddpm"], goals["ddim"])
+
+
+def test_goal_options_need_the_demos_and_no_checkpoint(capsys, checkpoint, tmp_path):
+    data = tmp_path / "data"
+    (data / "unseen").mkdir(parents=True)
+    one_line_error(capsys, ["eval", "--out", tmp_path / "a"], "--checkpoint", "missing")
+    one_line_error(capsys, ["eval", "--goal", "demo", "--out", tmp_path / "a"], "--goal demo", "needs --data")
+    one_line_error(capsys, ["eval", "--goal", "demo", "--checkpoint", checkpoint, "--data", data, "--out",
+                            tmp_path / "a"], "not used with --goal demo")
+    one_line_error(capsys, ["eval", "--goal", "demo", "--data", data, "--splits", "unseen,ood", "--out",
+                            tmp_path / "a"], "no demo folder for ood")
+    one_line_error(capsys, ["eval", "--goal", "mean", "--data", data, "--splits", "unseen", "--out", tmp_path / "a"],
+                   "no train folder")
+    assert not (tmp_path / "a").exists()  # nothing written
+
+
+@pytest.mark.slow
+def test_the_demo_goal_and_the_mean_goal_run_through_the_policy(generated, tmp_path, capsys):
+    """--goal demo executes each demo's own goal (RMSE 0: the policy's ceiling); --goal mean the training set's mean
+    goal in the anchor frame (the floor), here one training demo, so the same goal again."""
+    import shutil
+
+    folder, _ = generated
+    data = tmp_path / "data"
+    for split in ("train", "unseen"):
+        shutil.copytree(folder, data / split)
+    for goal in ("demo", "mean"):
+        out = tmp_path / goal
+        assert main(["eval", "--goal", goal, "--task", "hangproccloth-simple", "--data", str(data),
+                     "--splits", "unseen", "--workers", "1", "--no-report", "--out", str(out)]) == 0
+        summary = json.loads((out / "results.json").read_text())["summary"]
+        assert summary["variant"] == f"{goal}-goal" and summary["checkpoint"] is None and summary["goal"] == goal
+        split = summary["splits"]["unseen"]
+        assert split["episodes"] == 1 and split["rmse"] < 1e-6
+        assert split["success_rate"] == 1.0  # the expert's own goal hangs the fixed cloth
+    assert "the demos in" in capsys.readouterr().out

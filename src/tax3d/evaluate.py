@@ -27,8 +27,11 @@ SPLIT_FOLDERS = {"train": ("train",), "unseen": ("unseen", "val"), "ood": ("ood"
 class Args:
     """Evaluate a checkpoint on HangProcCloth or HangBag: RMSE and policy success per split, a table, JSON, a report."""
 
-    checkpoint: Path
-    """checkpoint directory (config.json + model.safetensors)"""
+    checkpoint: Path | None = None
+    """checkpoint directory (config.json + model.safetensors); not with --goal demo or mean"""
+    goal: Literal["model", "demo", "mean"] = "model"
+    """whose goal the policy executes: the checkpoint's prediction; each demo's own goal (the policy's ceiling); or
+    the mean goal of DATA/train in the anchor frame (the floor); demo and mean need --data"""
     task: str = "hangproccloth-simple"
     """hangproccloth-simple, hangproccloth-unimodal, hangproccloth-multimodal or hangbag"""
     splits: str = "train,unseen,ood"
@@ -84,9 +87,25 @@ class EvalJob:
     task: str = "hangproccloth-simple"
     offset: tuple | None = None  # gripper-target offset; None: the task's
     device: str = "cpu"
+    goal: str = "model"  # model, demo or mean (Args.goal)
+    mean_goal: object = None  # with goal "mean": the MeanGoalBaseline fitted on the training demos
 
 
 _PREDICTORS: dict = {}
+
+
+class FixedGoal:
+    """The `predict` interface of `Tax3D` around a goal that does not come from a network: a demo's own goal (an
+    array) or the training set's mean goal (a `MeanGoalBaseline`)."""
+
+    def __init__(self, goal):
+        self.goal = goal
+
+    def predict(self, action_points, anchor_points, num_samples=1, steps=None, sampler=None, seed=None,
+                return_trajectory=False):
+        goal = self.goal.predict(action_points, anchor_points) if hasattr(self.goal, "predict") else self.goal
+        goals = np.repeat(np.asarray(goal, dtype=np.float64)[None], num_samples, axis=0)
+        return (goals, goals[None]) if return_trajectory else goals
 
 
 def load_model(checkpoint, device: str = "cpu"):
@@ -117,8 +136,11 @@ def run_eval_job(job: EvalJob) -> dict:
     from tax3d.sim.tasks import get_task
 
     task = get_task(job.task)
-    predictor = _predictor(job.checkpoint, job.device)
-    if predictor.config.model.variant == "dp3":  # a policy of its own: no goal, so no RMSE
+    if job.goal == "model":
+        predictor = _predictor(job.checkpoint, job.device)
+    else:
+        predictor = FixedGoal(job.true_goal if job.goal == "demo" else job.mean_goal)
+    if job.goal == "model" and predictor.config.model.variant == "dp3":  # a policy of its own: no goal, no RMSE
         from tax3d.baselines.dp3 import DP3Policy
 
         policy = DP3Policy(predictor, job.seed)
@@ -171,13 +193,15 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         if all(_split_folder(args.data, get_split(name).name) is None for name in split_names):
             raise UsageError(f"--data {args.data}: has none of the folders {', '.join(dict.fromkeys(wanted))}; "
                              f"expected a demo folder per split inside it")
+    mean_goal = _fixed_goal(args, split_names) if args.goal != "model" else None
     jobs = []
     for split_name in split_names:
         split = get_split(split_name)
         folder = _split_folder(args.data, split.name)
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
                       sampler=args.sampler, replan_every=args.replan_every, task=task.name, device=args.device,
-                      offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset))
+                      offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset),
+                      goal=args.goal, mean_goal=mean_goal)
         if folder is not None:
             paths = list_demos(folder)[: args.episodes]
             for i, path in enumerate(paths):
@@ -197,6 +221,29 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         raise UsageError(f"--splits {args.splits!r}: no episodes to evaluate")
     jobs[0].denoising = True
     return jobs
+
+
+def _fixed_goal(args: Args, split_names: list[str]):
+    """--goal demo or mean: check that every split has its demos; for mean, fit the training set's mean goal."""
+    from tax3d.data.format import list_demos, load_demo
+    from tax3d.metrics import MeanGoalBaseline
+    from tax3d.sim.tasks import get_split
+
+    if args.data is None:
+        raise UsageError(f"--goal {args.goal}: needs --data, the folder of the demos whose goals it executes")
+    missing = [name for name in split_names if _split_folder(args.data, get_split(name).name) is None]
+    if missing:
+        raise UsageError(f"--goal {args.goal}: --data {args.data} has no demo folder for {', '.join(missing)}; "
+                         f"expected one per split, the goals come from the demos")
+    if args.goal == "demo":
+        return None
+    train = _split_folder(args.data, "train")
+    if train is None:
+        raise UsageError(f"--goal mean: --data {args.data} has no train folder to take the mean goal from")
+    try:
+        return MeanGoalBaseline.fit([load_demo(path) for path in list_demos(train)])
+    except ValueError as err:
+        raise UsageError(f"--data {train}: {err}") from None
 
 
 def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_eval_job, backend: str = "local",
@@ -256,7 +303,8 @@ def summarise(results: list[dict], splits: list[str]) -> dict:
 
 
 def display_name(variant: str) -> str:
-    return "DP3" if variant == "dp3" else f"TAX3D-{variant.upper()}"
+    names = {"dp3": "DP3", "demo-goal": "Each demo's own goal", "mean-goal": "The training set's mean goal"}
+    return names.get(variant, f"TAX3D-{variant.upper()}")
 
 
 def format_table(table: dict) -> str:
@@ -278,15 +326,24 @@ def evaluate(args: Args, progress: bool = True) -> dict:
     check_backend(args.backend, args.workers, args.address)
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
-    model = load_model(args.checkpoint, args.device)  # fails early, in one line, on a bad checkpoint or device
-    _check_task(model, args)
-    if hasattr(model, "sampling") and model.spec.diffusion:  # TAX3D diffusion variants (not DP3, RD/RP)
-        model.sampling(args.steps, args.sampler, "--")
+    if args.goal == "model":
+        if args.checkpoint is None:
+            raise UsageError("--checkpoint: missing; expected a checkpoint folder (or --goal demo or mean with --data)")
+        model = load_model(args.checkpoint, args.device)  # fails early, in one line, on a bad checkpoint or device
+        _check_task(model, args)
+        if hasattr(model, "sampling") and model.spec.diffusion:  # TAX3D diffusion variants (not DP3, RD/RP)
+            model.sampling(args.steps, args.sampler, "--")
+        variant = model.config.model.variant
+    elif args.checkpoint is not None:
+        raise UsageError(f"--checkpoint {args.checkpoint}: not used with --goal {args.goal}; expected one or the other")
+    else:
+        variant = f"{args.goal}-goal"
     jobs = plan_jobs(args)
     results = run_jobs(jobs, args.workers, progress, backend=args.backend, address=args.address)
     splits = list(dict.fromkeys(j.split for j in jobs))
     summary = {
-        "checkpoint": str(args.checkpoint), "task": args.task, "variant": model.config.model.variant,
+        "checkpoint": None if args.checkpoint is None else str(args.checkpoint), "task": args.task,
+        "variant": variant, "goal": args.goal,
         "command": "tax3d eval " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["eval"] else "tax3d.evaluate",
         "machine": provenance.machine(),
         "date": provenance.today(), "args": {k: str(v) for k, v in asdict(args).items()},
@@ -327,7 +384,8 @@ def _plain(value):
 def run(args: Args) -> int:
     out = evaluate(args)
     summary = out["summary"]
-    print(f"{display_name(summary['variant'])} on {args.task}, checkpoint {args.checkpoint}")
+    source = f"checkpoint {args.checkpoint}" if args.goal == "model" else f"the demos in {args.data}"
+    print(f"{display_name(summary['variant'])} on {args.task}, {source}")
     print(format_table(summary["splits"]))
     failed = sum(s["failed_runs"] for s in summary["splits"].values())
     if failed:

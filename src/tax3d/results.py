@@ -198,6 +198,8 @@ class Page:
             else:
                 offset = ", ".join(f"{v:g}" for v in d.get("offset", ()))
                 how = f"`{d['command']}`" + (f" (gripper-target offset ({offset}))" if offset else "")
+                if d["command"].startswith("python scripts/oracle_policy.py"):  # the script became an eval option
+                    how += f" (today: `tax3d eval --goal {d.get('goal', 'demo')}` with the same options)"
             config = f" Configuration: [{row['config']}]({row['config']})." if row.get("config") else ""
             config += f" Shipped as `{row['shipped']}`." if row.get("shipped") else ""
             lines.append(f"- **{row['label']}** ([{row['summary']}]({row['summary']})):{made} {how}, on "
