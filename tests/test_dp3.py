@@ -220,10 +220,11 @@ def read_log(out):
 
 def test_train_command_writes_a_checkpoint_and_resumes_exactly(tmp_path, demos, monkeypatch):
     monkeypatch.setitem(cfg.PRESETS, "cpu", tiny_config)
-    common = ["train-dp3", "--data", str(demos), "--preset", "cpu", "--device", "cpu", "--task", "hangproccloth-simple"]
-    assert main([*common, "--out", str(tmp_path / "whole"), "--steps", "4"]) == 0
-    assert main([*common, "--out", str(tmp_path / "split"), "--steps", "2"]) == 0
-    assert main([*common, "--out", str(tmp_path / "split"), "--steps", "4"]) == 0  # resumes at step 2
+    common = ["train-dp3", "--data.train", str(demos), "--preset", "cpu", "--device", "cpu",
+              "--data.task", "hangproccloth-simple"]
+    assert main([*common, "--out", str(tmp_path / "whole"), "--train.steps", "4"]) == 0
+    assert main([*common, "--out", str(tmp_path / "split"), "--train.steps", "2"]) == 0
+    assert main([*common, "--out", str(tmp_path / "split"), "--train.steps", "4"]) == 0  # resumes at step 2
     whole, split = read_log(tmp_path / "whole"), read_log(tmp_path / "split")
     assert [r["step"] for r in split] == [1, 2, 3, 4] and all(math.isfinite(r["loss"]) for r in whole)
     assert [r["loss"] for r in split] == pytest.approx([r["loss"] for r in whole], rel=1e-5)
@@ -248,11 +249,11 @@ def test_bad_inputs(tmp_path, capsys):
     plain.mkdir()
     demo = {k: v for k, v in synthetic_demo(0).items() if not k.startswith("traj_")}
     save_demo(plain / "demo_0.npz", demo)
-    err = one_line_error(capsys, ["train-dp3", "--data", str(plain), "--out", str(tmp_path / "run")])
+    err = one_line_error(capsys, ["train-dp3", "--data.train", str(plain), "--out", str(tmp_path / "run")])
     assert "demo_0.npz: no traj_gripper_pos" in err and "--trajectories" in err
-    err = one_line_error(capsys, ["train-dp3", "--data", str(tmp_path / "missing"), "--out", str(tmp_path / "run")])
+    err = one_line_error(capsys, ["train-dp3", "--data.train", str(tmp_path / "missing"), "--out", str(tmp_path / "run")])
     assert "no such demonstration folder" in err
-    err = one_line_error(capsys, ["train-dp3", "--data", str(plain), "--device", "tpu", "--out", str(tmp_path / "r")])
+    err = one_line_error(capsys, ["train-dp3", "--data.train", str(plain), "--device", "tpu", "--out", str(tmp_path / "r")])
     assert "--device 'tpu'" in err
 
 

@@ -22,7 +22,7 @@ TINY = {
     "predict": "--steps 2",
     "eval": "--episodes 1 --workers 1 --steps 2 --no-report",
     "benchmark": "--num-train 1 --episodes 1 --steps 2 --workers 1",
-    "train-dp3": "--steps 2 --batch-size 2",
+    "train-dp3": "--train.steps 2 --train.batch-size 2",
 }
 
 

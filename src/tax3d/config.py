@@ -271,7 +271,7 @@ def validate(config: Config, where: str = "config") -> Config:
 # --- command-line overrides ------------------------------------------------------------------------------------
 
 
-def _overrides_of(cls: type) -> type:
+def overrides_of(cls: type) -> type:
     """A dataclass with cls's fields, each optional and None by default: None keeps the preset's value."""
     hints = typing.get_type_hints(cls)
     fields = []
@@ -281,10 +281,10 @@ def _overrides_of(cls: type) -> type:
     return dataclasses.make_dataclass(f"{cls.__name__}Overrides", fields, frozen=True)
 
 
-ModelOverrides = _overrides_of(ModelConfig)
-DiffusionOverrides = _overrides_of(DiffusionConfig)
-DataOverrides = _overrides_of(DataConfig)
-TrainOverrides = _overrides_of(TrainConfig)
+ModelOverrides = overrides_of(ModelConfig)
+DiffusionOverrides = overrides_of(DiffusionConfig)
+DataOverrides = overrides_of(DataConfig)
+TrainOverrides = overrides_of(TrainConfig)
 
 
 def apply_overrides(config: Config, **sections) -> Config:

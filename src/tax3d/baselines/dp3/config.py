@@ -10,7 +10,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tax3d.config import parse_sections, read_json
+from tax3d.config import overrides_of, parse_sections, read_json
 from tax3d.errors import UsageError
 
 KIND = "dp3"
@@ -46,6 +46,8 @@ class DiffusionConfig:
 
 @dataclass
 class DataConfig:
+    train: tuple[str, ...] = ()
+    """demo folders (or demo files) written with `tax3d generate --trajectories`"""
     num_action_points: int = 512
     """cloth points per observation (a prefix of the stored farthest-point order)"""
     num_anchor_points: int = 512
@@ -95,6 +97,11 @@ def cpu() -> DP3Config:
 
 
 PRESETS = {"paper": paper, "cpu": cpu}
+# the command line's `--model.*`, `--diffusion.*`, `--data.*`, `--train.*`, as for TAX3D (tax3d.config)
+ModelOverrides = overrides_of(ModelConfig)
+DiffusionOverrides = overrides_of(DiffusionConfig)
+DataOverrides = overrides_of(DataConfig)
+TrainOverrides = overrides_of(TrainConfig)
 _SECTIONS = {"model": ModelConfig, "diffusion": DiffusionConfig, "data": DataConfig, "train": TrainConfig}
 
 

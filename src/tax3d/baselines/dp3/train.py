@@ -1,6 +1,8 @@
 """`tax3d train-dp3`: fit the DP3 baseline on demos with trajectories (`tax3d generate --trajectories`).
 
-    tax3d train-dp3 --data data/demos/train --out runs/dp3 --preset cpu [--steps 2000]
+    tax3d train-dp3 --preset cpu --data.train data/demos/train --out runs/dp3 [--train.steps 2000]
+
+The options are the dotted config fields of `tax3d train` (`--model.*`, `--diffusion.*`, `--data.*`, `--train.*`).
 
 OUT gets config.json, log.jsonl (one line per step) and last/: a checkpoint directory (config.json and
 model.safetensors, the EMA weights, for `tax3d eval --checkpoint OUT/last`) plus training_state.pt to resume from.
@@ -11,14 +13,13 @@ from a generator seeded by (seed, step), so a resumed run sees what an uninterru
 from __future__ import annotations
 
 import copy
-import dataclasses
 import json
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import torch
@@ -27,8 +28,10 @@ from tax3d.atomic import write_text
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
 from tax3d.baselines.dp3.model import DP3
+from tax3d.config import apply_overrides
 from tax3d.devices import pick_device
 from tax3d.errors import UsageError
+from tax3d.options import OutputFolder
 from tax3d.train import STATE_NAME, find_last, get_lr, save_checkpoint, truncate_log
 
 ADAM_BETAS = (0.95, 0.999)  # DP3's optimiser settings (docs/dp3.md)
@@ -39,24 +42,16 @@ EMA_POWER, EMA_MAX = 0.75, 0.9999  # DP3's EMA: decay 1 - (1 + step)^-0.75, capp
 class Args:
     """Train the DP3 baseline. Options left out take the preset's value (or, when resuming, the run's)."""
 
-    data: tuple[Path, ...]
-    """demo folders (or demo files) written with `tax3d generate --trajectories`"""
-    out: Path = Path("runs/dp3")
+    out: Annotated[str, OutputFolder] = "runs/dp3"
     """output folder: config.json, log.jsonl and last/"""
     preset: Literal["paper", "cpu"] = "paper"
     """paper: docs/reference.md's DP3 (a GPU's work); cpu: a small model that trains in minutes on a CPU"""
-    steps: int | None = None
-    """training steps (default: the preset's, paper 112,500, cpu 3,000)"""
-    batch_size: int | None = None
-    """samples per step (default: the preset's, paper 128, cpu 32)"""
-    lr: float | None = None
-    """peak AdamW learning rate (default: the preset's, paper 1e-4, cpu 3e-4)"""
-    seed: int | None = None
-    """seed of the initial weights and of every step's batch, rotations and noise (default: 0)"""
     device: str = "auto"
     """auto (cuda when available), cpu or cuda"""
-    task: str | None = None
-    """the task the demos come from, recorded for `tax3d eval` to check"""
+    model: cfg.ModelOverrides = field(default_factory=cfg.ModelOverrides)
+    diffusion: cfg.DiffusionOverrides = field(default_factory=cfg.DiffusionOverrides)
+    data: cfg.DataOverrides = field(default_factory=cfg.DataOverrides)
+    train: cfg.TrainOverrides = field(default_factory=cfg.TrainOverrides)
 
 
 def ema_decay(step: int) -> float:
@@ -67,12 +62,8 @@ def ema_decay(step: int) -> float:
 def resolve_config(args: Args, last: Path | None) -> cfg.DP3Config:
     """The preset with the given options applied; when resuming, the run's saved config (its preset wins)."""
     config = cfg.preset(args.preset) if last is None else cfg.load(last / "config.json")
-    train = {k: v for k, v in dict(steps=args.steps, batch_size=args.batch_size, lr=args.lr, seed=args.seed).items()
-             if v is not None}
-    config = dataclasses.replace(config, train=dataclasses.replace(config.train, **train))
-    if args.task is not None:
-        config = dataclasses.replace(config, data=dataclasses.replace(config.data, task=args.task))
-    return cfg.validate(config, "options")
+    overrides = dict(model=args.model, diffusion=args.diffusion, data=args.data, train=args.train)
+    return cfg.validate(apply_overrides(config, **overrides), "options")
 
 
 def step_batch(dataset: TrajectoryDataset, config: cfg.DP3Config, step: int, device: torch.device) -> tuple:
@@ -100,10 +91,11 @@ def run(args: Args) -> int:
     if c.threads > 0:
         torch.set_num_threads(c.threads)
     device = pick_device(args.device)
-    if not args.data:
-        raise UsageError("--data: no demonstration folder given")
+    if not config.data.train:
+        raise UsageError("--data.train: no demonstration folder given; expected folders of demos written with "
+                         "`tax3d generate --trajectories`")
     m = config.model
-    dataset = TrajectoryDataset(args.data, m.horizon, m.n_obs_steps, config.data.num_action_points,
+    dataset = TrajectoryDataset(config.data.train, m.horizon, m.n_obs_steps, config.data.num_action_points,
                                 config.data.num_anchor_points)
 
     torch.manual_seed(c.seed)
