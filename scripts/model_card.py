@@ -1,11 +1,11 @@
 """Write a shipped checkpoint's model card (its README.md) from the files that describe it, no number typed by hand.
 
     python scripts/model_card.py checkpoints/tax3d-cd-unimodal --log docs/results/training/RUN-log.json \
-        --eval docs/results/evals/NAME.json --data-command "..." --train-command "..." [--paper 0.94/0.90/0.85]
+        --eval docs/results/evals/NAME.json --data-command "..." --train-command "..."
 
 --log is a training log kept as JSON (`{"records": [...]}` from log.jsonl, see --keep-log), --eval a kept
 `tax3d eval` summary. The card says what the checkpoint is for, how it was made and how well it does, beside the
-paper's success where --paper gives it (train/unseen/ood).
+paper's success and RMSE for the same task and variant (docs/results/paper.toml).
 """
 
 from __future__ import annotations
@@ -13,27 +13,39 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tomllib
 from pathlib import Path
 
 from tax3d.atomic import write_text
 from tax3d.checkpoint import read_log
 
+PAPER = Path(__file__).resolve().parents[1] / "docs" / "results" / "paper.toml"
+SPLITS = ("train", "unseen", "ood")
 
-def success_table(splits: dict, paper: list[str] | None) -> list[str]:
-    lines = ["| split | episodes | success | goal RMSE | coverage RMSE |" + (" paper success |" if paper else ""),
-             "| --- | --- | --- | --- | --- |" + (" --- |" if paper else "")]
+
+def paper_row(task: str, variant: str) -> dict | None:
+    """The paper's row for this task and variant (its appendix D table), or None."""
+    return tomllib.loads(PAPER.read_text()).get(task, {}).get("rows", {}).get(variant.upper())
+
+
+def _cell(value, fmt: str) -> str:
+    return "-" if value is None else fmt.format(value)
+
+
+def success_table(splits: dict, paper: dict | None) -> list[str]:
+    lines = ["| split | episodes | success | paper success | goal RMSE | paper RMSE | coverage RMSE |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
     for name, split in splits.items():
-        extra = ""
-        if paper:
-            extra = f" {dict(zip(('train', 'unseen', 'ood'), paper)).get(name, '-')} |"
-        rmse = "-" if split.get("rmse") is None else f"{split['rmse']:.3f}"
-        coverage = "-" if split.get("coverage_rmse") is None else f"{split['coverage_rmse']:.3f}"
-        lines.append(f"| {name} | {split['episodes']} | {split['success_rate']:.2f} | {rmse} | {coverage} |{extra}")
+        column = SPLITS.index(name) if name in SPLITS else None
+        paper_success = paper["success"][column] if paper and column is not None else None
+        paper_rmse = paper["rmse"][column] if paper and column is not None and "rmse" in paper else None
+        lines.append(f"| {name} | {split['episodes']} | {split['success_rate']:.2f} | {_cell(paper_success, '{:.2f}')} "
+                     f"| {_cell(split.get('rmse'), '{:.3f}')} | {_cell(paper_rmse, '{:.3f}')} "
+                     f"| {_cell(split.get('coverage_rmse'), '{:.3f}')} |")
     return lines
 
 
-def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str, train_command: str,
-         paper: list[str] | None) -> str:
+def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str, train_command: str) -> str:
     config = json.loads((checkpoint / "config.json").read_text())
     plan = next((r["plan"] for r in records if "plan" in r), None)
     vals = [r for r in records if "val_rmse" in r]
@@ -55,9 +67,10 @@ def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str
         "",
         "## Results",
         "",
-        f"`tax3d eval` on {summary['task']}, {summary['date']}, {summary['machine']}:",
+        f"`tax3d eval` on {summary['task']}, {summary['date']}, {summary['machine']}; the paper's figures from "
+        f"its appendix D (docs/results/paper.toml):",
         "",
-        *success_table(summary["splits"], paper),
+        *success_table(summary["splits"], paper_row(task, variant)),
         "",
         f"Command: `{summary['command']}`",
         "",
@@ -97,16 +110,14 @@ def main() -> int:
     parser.add_argument("--eval", type=Path, required=True)
     parser.add_argument("--data-command", required=True)
     parser.add_argument("--train-command", required=True)
-    parser.add_argument("--paper", help="the paper's success, train/unseen/ood, e.g. 0.94/0.90/0.85")
     args = parser.parse_args()
     if args.log.suffix == ".jsonl":
         records = read_log(args.log)
     else:
         records = json.loads(args.log.read_text())["records"]
     summary = json.loads(args.eval.read_text())["summary"]
-    paper = args.paper.split("/") if args.paper else None
     write_text(args.checkpoint / "README.md", card(args.checkpoint, records, summary, args.data_command,
-                                                   args.train_command, paper))
+                                                   args.train_command))
     print(args.checkpoint / "README.md")
     return 0
 
