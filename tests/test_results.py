@@ -201,7 +201,8 @@ def measurement_json() -> dict[str, dict]:
              "goal_rmse_under_0.5": 1}
     rate = {"task": "hangproccloth-simple", "split": "unseen", "episodes": 4, "exploded": 1, "success_rate": 0.75,
             "seconds_per_episode": 12.5}
-    speed = {**PROV, "command": "python benchmarks/sim.py", "task": "hangproccloth-simple", "sim_steps_per_second": 640.0,
+    speed = {**PROV, "command": "python benchmarks/sim.py", "task": "hangproccloth-simple",
+             "sim_steps_per_second": 640.0,
              "seconds_per_episode_1_worker": 8.5, "throughput_ratio_2_workers": 1.5}
     predict = {"action_points": 580, "ddpm_100": {"latency_s": 0.5, "rmse_min_of_samples": 0.25},
                "ddpm_10": {"latency_s": 0.05, "rmse_min_of_samples": 0.25},
@@ -257,7 +258,8 @@ def test_measurement_pages_from_fixture_json(measured):
     assert "TAX3D-CD predicts goals 0.125 RMSE from the official `val` goals, against the paper's 0.255" in official
     assert "| TAX3D-CD, this checkpoint, 10-step DDIM | 0.375 | 0.188 |" in official
     assert "stopped at step 300 of 900 and resumed with `--train.steps 800 --train.time-limit 50`" in official
-    assert "(per sample: 0.125, 0.125)" in official and "| speed-up, 10-step DDPM over 100-step | **10.0x** |" in official
+    assert "(per sample: 0.125, 0.125)" in official
+    assert "| speed-up, 10-step DDPM over 100-step | **10.0x** |" in official
     training = (measured.parent / "training.md").read_text()
     assert training.startswith("# T\n\nbefore\n<!-- study -->\n**Best at the end of its run: ttq-1: b, validation "
                                "RMSE 0.700 after 65 minutes** (mean-goal floor 1.750;")

@@ -40,7 +40,8 @@ MARKERS = ("<!-- results -->", "<!-- /results -->")
 
 @dataclass
 class Args:
-    """Build the result pages of docs/results/ (and the README's results table) from docs/results/pages/*.toml."""
+    """Build the result pages of docs/results/ (and the README's results table, docs/training.md's study) from
+    docs/results/pages/*.toml."""
 
     page: tyro.conf.Positional[Optional[str]] = None
     """one page, by its name (e.g. hangbag); default: every page"""
@@ -316,7 +317,8 @@ def fold(summary: str, lines: list[str]) -> list[str]:
 
 
 def readme_table(pages: list[Page]) -> str:
-    pages = sorted((p for p in pages if p.spec.get("readme") and p.spec.get("kind", "task") == "task"), key=lambda p: p.spec["readme"]["order"])
+    pages = sorted((p for p in pages if p.spec.get("readme") and p.spec.get("kind", "task") == "task"),
+                   key=lambda p: p.spec["readme"]["order"])
     rows = [p.readme_row() for p in pages]
     return "\n".join(["| task | our success, unseen / ood | the paper's | page |", "| --- | --- | --- | --- |",
                       *rows])

@@ -93,7 +93,8 @@ class OfficialPage(MeasurementPage):
                  f"min over {val['samples']} samples |", "| --- | --- | --- |",
                  f"| TAX3D-CD, this checkpoint, 100-step DDPM | **{ddpm['rmse']:.3f}** | "
                  f"{ddpm['rmse_min_of_samples']:.3f} |",
-                 f"| TAX3D-CD, this checkpoint, 10-step DDIM | {ddim['rmse']:.3f} | {ddim['rmse_min_of_samples']:.3f} |",
+                 f"| TAX3D-CD, this checkpoint, 10-step DDIM | {ddim['rmse']:.3f} | "
+                 f"{ddim['rmse_min_of_samples']:.3f} |",
                  f"| TAX3D-CD, the paper (`unseen`) | {paper:.3f} | - |",
                  f"| mean goal of `train` in the anchor frame (`tax3d.metrics.MeanGoalBaseline`) | "
                  f"{val['mean_goal_baseline_rmse']:.3f} | - |", "",
@@ -119,15 +120,16 @@ class OfficialPage(MeasurementPage):
             if "rmse_ratio_ddpm_10_vs_100" in pred:
                 lines += [f"| `val` RMSE, min of {pred['samples_per_demo']} samples: 100-step / 10-step DDPM / "
                           f"10-step DDIM | {pred['ddpm_100']['rmse_min_of_samples']:.3f} / "
-                          f"{pred['ddpm_10']['rmse_min_of_samples']:.3f} / {pred['ddim_10']['rmse_min_of_samples']:.3f} |",
+                          f"{pred['ddpm_10']['rmse_min_of_samples']:.3f} / "
+                          f"{pred['ddim_10']['rmse_min_of_samples']:.3f} |",
                           f"| RMSE ratio, 10-step DDPM over 100-step | {pred['rmse_ratio_ddpm_10_vs_100']:.3f} |"]
         lines += [f"| float32 matmul peak (`torch.mm`, same run) | {bench['matmul_peak_gflops']:.0f} GFLOP/s |",
                   f"| training step, paper configuration ({train['config']}) | {train['seconds']:.2f} s |",
                   f"| its FLOPs (matmuls and attention, forward + backward) | {train['gflop']:.0f} GFLOP |",
                   f"| its FLOP rate | {train['gflops']:.0f} GFLOP/s = **{train['fraction_of_peak']:.0%} of peak** |"]
         if cpu:
-            lines.append(f"| training step, `cpu` preset, one / two torch threads | {cpu['step_seconds_1_threads']:.3f} "
-                         f"/ {cpu['step_seconds_2_threads']:.3f} s |")
+            lines.append(f"| training step, `cpu` preset, one / two torch threads | "
+                         f"{cpu['step_seconds_1_threads']:.3f} / {cpu['step_seconds_2_threads']:.3f} s |")
             if "batch_data_seconds" in cpu:
                 lines.append(f"| one batch of `cpu`-preset samples (FPS, frames), one process | "
                              f"{cpu['batch_data_seconds']:.3f} s |")
