@@ -1,4 +1,5 @@
-"""`tax3d results`: pages built from declarations and kept summaries, --check, bad input, the paper's data file."""
+"""`tax3d results`: pages built from declarations and kept summaries (the task pages and the measurement pages),
+--check, bad input, the paper's data file."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 
 from tax3d import results
 from tax3d.cli import main
+from tests.conftest import one_line_error
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
@@ -148,9 +150,14 @@ def _prose(text: str) -> list[str]:
 
 
 def test_no_paragraph_over_120_words_outside_details():
-    for path, data in results.build(RESULTS).items():
+    built = results.build(RESULTS)
+    assert {p.name for p in built} >= {"hangproccloth-sim.md", "official-simple.md", "training.md"}
+    for path, data in built.items():
         if path.suffix == ".md" and path.name != "README.md":
-            for paragraph in _prose(data.decode()):
+            text = data.decode()
+            if "<!-- study -->" in text:  # docs/training.md: the section that `tax3d results` builds
+                text = text.split("<!-- study -->", 1)[1].split("<!-- /study -->", 1)[0]
+            for paragraph in _prose(text):
                 assert len(paragraph.split()) <= 120, f"{path.name}: {paragraph[:80]}..."
 
 
@@ -167,3 +174,132 @@ def test_notes_have_no_hand_typed_numbers():
 
 def test_committed_pages_are_what_tax3d_results_builds(capsys):
     assert main(["results", "--check"]) == 0, capsys.readouterr().err
+
+
+# -- the measurement pages: the simulation page, the official-data page, the training study -------------------------
+
+PROV = {"machine": "fixture machine", "date": "2026-02-03"}
+
+
+def study(curves: dict[str, list[tuple[float, float]]]) -> dict:
+    return {**PROV, "val": ["v"], "val_demos": 20, "val_samples": 2, "runs": {
+        name: {"options": f"--opt {name}", "command": f"tax3d train --out runs/{name}", "steps_per_minute": 100.0,
+               "plan": {"step_seconds": 0.5},
+               "curve": [{"minutes": m, "step": int(m * 100), "val_rmse": r} for m, r in curve]}
+        for name, curve in curves.items()}}
+
+
+def sampler(rmse: float) -> dict:
+    return {"rmse": rmse, "rmse_per_sample_index": [rmse, rmse], "rmse_min_of_samples": rmse / 2,
+            "rmse_median_demo": rmse, "rmse_max_demo": 2 * rmse}
+
+
+def measurement_json() -> dict[str, dict]:
+    """Small kept JSON for the three measurement pages, by path relative to the results folder."""
+    split = {"demos": 4, "init_max_abs_diff": 2e-05, "anchor_nn_mean": 0.001, "anchor_nn_max": 0.002, "episodes": 2,
+             "expert_success": 0.5, "goal_rmse_mean": 0.25, "goal_rmse_median": 0.2, "goal_rmse_max": 0.75,
+             "goal_rmse_under_0.5": 1}
+    rate = {"task": "hangproccloth-simple", "split": "unseen", "episodes": 4, "exploded": 1, "success_rate": 0.75,
+            "seconds_per_episode": 12.5}
+    speed = {**PROV, "command": "python benchmarks/sim.py", "task": "hangproccloth-simple",
+             "sim_steps_per_second": 640.0,
+             "seconds_per_episode_1_worker": 8.5, "throughput_ratio_2_workers": 1.5}
+    predict = {"action_points": 580, "ddpm_100": {"latency_s": 0.5, "rmse_min_of_samples": 0.25},
+               "ddpm_10": {"latency_s": 0.05, "rmse_min_of_samples": 0.25},
+               "ddim_10": {"latency_s": 0.04, "rmse_min_of_samples": 0.25}, "speedup_10_vs_100": 10.0,
+               "rmse_ratio_ddpm_10_vs_100": 1.0, "samples_per_demo": 3, "latency_rounds": 5}
+    return {
+        "fidelity.json": {**PROV, "command": "python scripts/fidelity.py", "train": split, "val": split},
+        "expert_rates.json": {**PROV, "command": "python scripts/expert_rates.py", "rates": [rate]},
+        "expert_rates_random.json": {**PROV, "command": "python scripts/expert_rates.py --num 4", "rates": [rate]},
+        "sim_benchmark.json": speed,
+        "sim_benchmark_hangbag.json": {**speed, "task": "hangbag", "throughput_ratio_2_workers": None},
+        "official_val.json": {**PROV, "command": "python scripts/official_report.py", "checkpoint": "checkpoints/x",
+                              "demos": 8, "samples": 2, "mean_goal_baseline_rmse": 1.25,
+                              "samplers": {"ddpm_100": sampler(0.125), "ddim_10": sampler(0.375)}},
+        "model_benchmark.json": {**PROV, "command": "python benchmarks/model.py", "matmul_peak_gflops": 100.0,
+                                 "train_step": {"config": "paper", "seconds": 1.0, "gflop": 50.0, "gflops": 50.0,
+                                                "fraction_of_peak": 0.5}, "predict": predict},
+        "official_training.json": {"command": "tax3d train --out runs/o", "log": "runs/o/log.jsonl",
+                                   "first_plan_steps": 900, "stopped_at_step": 300, "training_minutes": 45,
+                                   "best_step": 600, "machine": "fixture machine"},
+        "training/ttq-1.json": study({"a": [(14, 2.0), (29, 1.5), (61, 0.9)], "b": [(20, 1.2), (65, 0.7)]}),
+        "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
+        "../../checkpoints/tax3d-cd-official-simple/config.json": {"train": {
+            "steps": 800, "time_limit": 50.0, "val_demos": 4, "val_samples": 2, "val_every": 100}},
+    }
+
+
+@pytest.fixture
+def measured(tmp_path: Path) -> Path:
+    """docs/results/ with the paper's data file, the three measurement declarations and small kept JSON for them."""
+    root = tmp_path / "docs" / "results"
+    (root / "pages").mkdir(parents=True)
+    shutil.copy(RESULTS / "paper.toml", root / "paper.toml")
+    for name in ("hangproccloth-sim", "official-simple", "training"):
+        shutil.copy(RESULTS / "pages" / f"{name}.toml", root / "pages" / f"{name}.toml")
+    for rel, data in measurement_json().items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(json.dumps(data))
+    (root.parent / "training.md").write_text("# T\n\nbefore\n<!-- study -->\nold\n<!-- /study -->\nafter\n")
+    return root
+
+
+def test_measurement_pages_from_fixture_json(measured):
+    assert main(["results", "--root", str(measured)]) == 0
+    sim = (measured / "hangproccloth-sim.md").read_text()
+    assert sim.startswith("# HangProcCloth simulation: fidelity, pseudo-expert, speed\n\nOur HangProcCloth-simple "
+                          "scene starts where the official demonstrations start (initial cloth within 2.0e-05 of ")
+    assert "| goal RMSE against the official goal (mean / median / max) | 0.250 / 0.200 / 0.750 |" in sim
+    assert "| demos with goal RMSE under 0.5 | 1 | 1 |" in sim
+    assert "| hangproccloth-simple | `unseen` | 4 | 0.75 | 1 |" in sim and "| hangbag | 640 | 8.50 | - |" in sim
+    assert "`python scripts/fidelity.py` on fixture machine, 2026-02-03" in sim
+    official = (measured / "official-simple.md").read_text()
+    assert "TAX3D-CD predicts goals 0.125 RMSE from the official `val` goals, against the paper's 0.255" in official
+    assert "| TAX3D-CD, this checkpoint, 10-step DDIM | 0.375 | 0.188 |" in official
+    assert "stopped at step 300 of 900 and resumed with `--train.steps 800 --train.time-limit 50`" in official
+    assert "(per sample: 0.125, 0.125)" in official
+    assert "| speed-up, 10-step DDPM over 100-step | **10.0x** |" in official
+    training = (measured.parent / "training.md").read_text()
+    assert training.startswith("# T\n\nbefore\n<!-- study -->\n**Best at the end of its run: ttq-1: b, validation "
+                               "RMSE 0.700 after 65 minutes** (mean-goal floor 1.750;")
+    assert training.endswith("<!-- /study -->\nafter\n") and "old" not in training
+    row_a = next(line for line in training.splitlines() if line.startswith("| ttq-1 | a |"))
+    # 15 min: the validation at 14; 30: at 29; 60: at 61 (within 10%); whole-run and first-steps rates
+    assert "| 2.000 (14 min) | 1.500 (29 min) | 0.900 (61 min) | 0.900 (61 min) | 100 | 120 |" in row_a
+    assert "![validation RMSE against minutes](results/training/time_to_quality.png)" in training
+    assert "[training/ttq-1.json](results/training/ttq-1.json) on fixture machine, 2026-02-03" in training
+    assert (measured / "training" / "time_to_quality.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["results", "--root", str(measured), "--check"]) == 0
+    assert results.build(measured) == results.build(measured)  # the plot too
+
+
+@pytest.mark.parametrize("rel, old, new, page", [
+    ("fidelity.json", '"expert_success": 0.5', '"expert_success": 0.625', "hangproccloth-sim.md"),
+    ("sim_benchmark.json", '"sim_steps_per_second": 640.0', '"sim_steps_per_second": 650.0', "hangproccloth-sim.md"),
+    ("official_val.json", '"demos": 8', '"demos": 9', "official-simple.md"),
+    ("model_benchmark.json", '"speedup_10_vs_100": 10.0', '"speedup_10_vs_100": 9.0', "official-simple.md"),
+    ("training/ttq-1.json", '"val_rmse": 0.7', '"val_rmse": 0.75', "training.md")])
+def test_check_names_a_measurement_page_whose_json_changed(measured, capsys, rel, old, new, page):
+    assert main(["results", "--root", str(measured)]) == 0
+    path = measured / rel
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+    capsys.readouterr()
+    assert main(["results", "--root", str(measured), "--check"]) == 1
+    assert f"{page} differs" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("rel", ["sim_benchmark_hangbag.json", "official_training.json", "model_benchmark.json",
+                                 "training/unimodal-floor-20.json", "training/ttq-1.json"])
+def test_missing_measurement_json_is_a_one_line_error(measured, capsys, rel):
+    (measured / rel).unlink()
+    err = one_line_error(capsys, ["results", "--root", measured])
+    assert rel.rsplit("/", 1)[-1].replace("ttq-1.json", "ttq-*.json") in err, err
+    assert not (measured / "official-simple.md").exists() and "old" in (measured.parent / "training.md").read_text()
+
+
+def test_training_page_without_its_markers_is_a_one_line_error(measured, capsys):
+    (measured.parent / "training.md").write_text("# T\n")
+    one_line_error(capsys, ["results", "training", "--root", measured], "training.md: no <!-- study -->")

@@ -3,7 +3,8 @@
 Each page is a TOML file in docs/results/pages/: its rows (label, the kept JSON it reads, the commands that made
 it), the paper's rows it sets beside them (docs/results/paper.toml) and its notes, markdown in which every number
 is a `{source.key.key}` placeholder filled from a kept JSON. The README's results table is built from the same
-declarations, between `<!-- results -->` and `<!-- /results -->`.
+declarations, between `<!-- results -->` and `<!-- /results -->`. A declaration with a `kind` (sim, official,
+training) is a measurement page instead, built by tax3d.results_pages.
 
 A declaration holds `title`, `task` (its key in paper.toml), `verdict`, `definitions`, `headline` (at most 8 row
 ids or `paper:ROW`), optional `readme`, `setup`, `sets`, `sets_note`, `spread_note`, and arrays of tables: `row`
@@ -39,7 +40,8 @@ MARKERS = ("<!-- results -->", "<!-- /results -->")
 
 @dataclass
 class Args:
-    """Build the result pages of docs/results/ (and the README's results table) from docs/results/pages/*.toml."""
+    """Build the result pages of docs/results/ (and the README's results table, docs/training.md's study) from
+    docs/results/pages/*.toml."""
 
     page: tyro.conf.Positional[Optional[str]] = None
     """one page, by its name (e.g. hangbag); default: every page"""
@@ -297,6 +299,9 @@ class Page:
         fig.savefig(out, dpi=110, format="png", metadata={"Software": None})
         return out.getvalue()
 
+    def files(self) -> dict[Path, bytes]:
+        return {self.root / f"{self.name}.md": self.markdown().encode(), self.root / f"{self.name}.png": self.plot()}
+
     def readme_row(self) -> str:
         best = self.spec["readme"]
         d, paper = self.data[best["row"]], self.paper["rows"][best["paper"]]
@@ -312,7 +317,8 @@ def fold(summary: str, lines: list[str]) -> list[str]:
 
 
 def readme_table(pages: list[Page]) -> str:
-    pages = sorted((p for p in pages if p.spec.get("readme")), key=lambda p: p.spec["readme"]["order"])
+    pages = sorted((p for p in pages if p.spec.get("readme") and p.spec.get("kind", "task") == "task"),
+                   key=lambda p: p.spec["readme"]["order"])
     rows = [p.readme_row() for p in pages]
     return "\n".join(["| task | our success, unseen / ood | the paper's | page |", "| --- | --- | --- | --- |",
                       *rows])
@@ -330,11 +336,19 @@ def build(root: Path, only: str | None = None) -> dict[Path, bytes]:
     names = [f.stem for f in files]
     if only is not None and only not in names:
         raise UsageError(f"page {only!r}: expected one of {', '.join(names)}")
-    pages = [Page(f, root, paper) for f in files if only in (None, f.stem)]
-    out = {}
-    for page in pages:
-        out[root / f"{page.name}.md"] = page.markdown().encode()
-        out[root / f"{page.name}.png"] = page.plot()
+    from tax3d.results_pages import KINDS
+
+    out, pages = {}, []
+    for f in files:
+        if only in (None, f.stem):
+            try:
+                kind = tomllib.loads(f.read_text()).get("kind", "task")
+            except tomllib.TOMLDecodeError as err:
+                raise UsageError(f"{f}: not valid TOML ({err})") from None
+            if kind != "task" and kind not in KINDS:
+                raise UsageError(f"{f.name}: kind {kind!r}: expected task, {', '.join(KINDS)}")
+            pages.append(KINDS.get(kind, Page)(f, root, paper))
+            out.update(pages[-1].files())
     readme = root.parent.parent / "README.md"
     if only is None and readme.is_file() and MARKERS[0] in readme.read_text():
         out[readme] = with_table(readme.read_text(), readme_table(pages)).encode()

@@ -1,4 +1,5 @@
-"""The scripts that turn kept results into pages: the training study's table and plot, and a checkpoint's card."""
+"""scripts/model_card.py: a checkpoint's card from its log and evaluation (the training study's section is built by
+`tax3d results training`: tests/test_results.py)."""
 
 from __future__ import annotations
 
@@ -10,33 +11,6 @@ from pathlib import Path
 from tests.conftest import tiny_model
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def study(curves: dict[str, list[tuple[float, float]]]) -> dict:
-    return {"machine": "m", "date": "d", "val": ["v"], "val_demos": 20, "val_samples": 2, "runs": {
-        name: {"options": f"--opt {name}", "steps_per_minute": 100.0, "plan": {"step_seconds": 0.5},
-               "curve": [{"minutes": m, "step": int(m * 100), "val_rmse": r, "val_rmse_mean": r} for m, r in curve]}
-        for name, curve in curves.items()}}
-
-
-def test_training_study_fills_its_section_from_the_json(tmp_path):
-    path = tmp_path / "ttq-1.json"
-    path.write_text(json.dumps(study({"a": [(14, 2.0), (29, 1.5), (61, 0.9)], "b": [(20, 1.2), (65, 0.7)]})))
-    floor = tmp_path / "floor.json"
-    floor.write_text(json.dumps({"rmse_mean_goal_baseline": 1.7}))
-    page = tmp_path / "training.md"
-    page.write_text("# T\n\nbefore\n<!-- study -->\nold\n<!-- /study -->\nafter\n")
-    plot = tmp_path / "plot.png"
-    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "training_study.py"), str(path), "--floor",
-                           str(floor), "--page", str(page), "--plot", str(plot)], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    text = page.read_text()
-    assert text.startswith("# T\n\nbefore\n<!-- study -->\n") and text.endswith("<!-- /study -->\nafter\n")
-    assert "old" not in text and plot.stat().st_size > 1000
-    assert "Best at the end of its run: ttq-1: b, validation RMSE 0.700 after 65 minutes" in text
-    row_a = next(line for line in text.splitlines() if line.startswith("| ttq-1 | a |"))
-    # 15 min: the validation at 14; 30: at 29; 60: at 61 (within 10%); whole-run and first-steps rates
-    assert "| 2.000 (14 min) | 1.500 (29 min) | 0.900 (61 min) | 0.900 (61 min) | 100 | 120 |" in row_a
 
 
 def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path):
