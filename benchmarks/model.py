@@ -191,7 +191,10 @@ def large_clouds(checkpoint: Path, samples: int, rounds: int, points: int = 20_0
     for name, max_points in (("sampled", None), ("every_point", 0)):
         goals = model.predict_scenes(scenes, num_samples=samples, seed=0, max_points=max_points)
         result[f"rmse_{name}"] = float(np.mean([min_of_samples_rmse(g, t) for g, t in zip(goals, truth)]))
+        result[f"rmse_mean_{name}"] = float(np.mean([rmse(g, t[None]).mean() for g, t in zip(goals, truth)]))
+    # min over the samples of each demo (as training validates), and the mean over them (as `tax3d eval` scores)
     result["rmse_ratio_sampled_vs_every_point"] = result["rmse_sampled"] / result["rmse_every_point"]
+    result["rmse_mean_ratio_sampled_vs_every_point"] = result["rmse_mean_sampled"] / result["rmse_mean_every_point"]
     return result
 
 

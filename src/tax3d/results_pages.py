@@ -103,7 +103,26 @@ class OfficialPage(MeasurementPage):
         lines += ["## Speed", "", *self.speed(bench), "",
                   f"Measured by {provenance(bench)}, nothing else running "
                   "([model_benchmark.json](model_benchmark.json) holds the full output).", "", *self.notes("speed")]
+        if "large" in self.data:
+            lines += ["## Depth-camera-sized clouds", "", *self.large(self.data["large"]["large_clouds"]), "",
+                      f"Measured by {provenance(self.data['large'])} "
+                      "([large_clouds_benchmark.json](large_clouds_benchmark.json)).", "", *self.notes("large")]
         return "\n".join(lines).rstrip() + "\n"
+
+    @staticmethod
+    def large(big: dict) -> list[str]:
+        k = big["samples_per_demo"]
+        lines = ["| measure | value |", "| --- | --- |",
+                 f"| prediction of {big['action_points']:,} action points, network on {big['network_points']}, "
+                 f"10-step DDPM | {big['latency_s']:.2f} s |",
+                 f"| `val` RMSE, min of {k} samples: network on {big['network_points']} points / on every point | "
+                 f"{big['rmse_sampled']:.3f} / {big['rmse_every_point']:.3f} (ratio "
+                 f"**{big['rmse_ratio_sampled_vs_every_point']:.3f}**) |"]
+        if "rmse_mean_sampled" in big:
+            lines.append(f"| `val` RMSE, mean of {k} samples: network on {big['network_points']} points / on every "
+                         f"point | {big['rmse_mean_sampled']:.3f} / {big['rmse_mean_every_point']:.3f} (ratio "
+                         f"**{big['rmse_mean_ratio_sampled_vs_every_point']:.3f}**) |")
+        return lines
 
     @staticmethod
     def speed(bench: dict) -> list[str]:
