@@ -220,6 +220,9 @@ def measurement_json() -> dict[str, dict]:
         "model_benchmark.json": {**PROV, "command": "python benchmarks/model.py", "matmul_peak_gflops": 100.0,
                                  "train_step": {"config": "paper", "seconds": 1.0, "gflop": 50.0, "gflops": 50.0,
                                                 "fraction_of_peak": 0.5}, "predict": predict},
+        "large_clouds_benchmark.json": {**PROV, "command": "python benchmarks/model.py --parts large", "large_clouds": {
+            "action_points": 20000, "network_points": 256, "latency_s": 0.25, "demos": 8, "samples_per_demo": 2,
+            "rmse_sampled": 0.25, "rmse_every_point": 0.2, "rmse_ratio_sampled_vs_every_point": 1.25}},
         "official_training.json": {"command": "tax3d train --out runs/o", "log": "runs/o/log.jsonl",
                                    "first_plan_steps": 900, "stopped_at_step": 300, "training_minutes": 45,
                                    "best_step": 600, "machine": "fixture machine"},
@@ -260,6 +263,8 @@ def test_measurement_pages_from_fixture_json(measured):
     assert "stopped at step 300 of 900 and resumed with `--train.steps 800 --train.time-limit 50`" in official
     assert "(per sample: 0.125, 0.125)" in official
     assert "| speed-up, 10-step DDPM over 100-step | **10.0x** |" in official
+    assert "| prediction of 20,000 action points, network on 256, 10-step DDPM | 0.25 s |" in official
+    assert "| 0.250 / 0.200 (ratio **1.250**) |" in official and "on the 8 `val` cloths" in official
     training = (measured.parent / "training.md").read_text()
     assert training.startswith("# T\n\nbefore\n<!-- study -->\n**Best at the end of its run: ttq-1: b, validation "
                                "RMSE 0.700 after 65 minutes** (mean-goal floor 1.750;")
@@ -292,6 +297,7 @@ def test_check_names_a_measurement_page_whose_json_changed(measured, capsys, rel
 
 
 @pytest.mark.parametrize("rel", ["sim_benchmark_hangbag.json", "official_training.json", "model_benchmark.json",
+                                 "large_clouds_benchmark.json",
                                  "training/unimodal-floor-20.json", "training/ttq-1.json"])
 def test_missing_measurement_json_is_a_one_line_error(measured, capsys, rel):
     (measured / rel).unlink()
