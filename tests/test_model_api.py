@@ -163,6 +163,21 @@ def test_predict_command(tmp_path, capsys, checkpoint):
         assert np.isclose(f["rmse"].min(1).mean(), summary["rmse_min_of_samples"])
 
 
+def test_predict_compares_the_samplers_on_the_same_demos_and_seed(tmp_path, capsys, checkpoint):
+    ckpt, demos = checkpoint
+    argv = ["predict", "--checkpoint", str(ckpt), "--demos", str(demos), "--samples", "2"]
+    assert main([*argv, "--compare-samplers", "--summary", str(tmp_path / "s.json")]) == 0
+    compared = json.loads((tmp_path / "s.json").read_text())["samplers"]
+    assert list(compared) == ["ddpm_10", "ddim_10", "ddpm_100"]
+    assert len({row["rmse_mean"] for row in compared.values()}) == 3  # three different samplers
+    for name, (steps, sampler) in zip(compared, [(10, "ddpm"), (10, "ddim"), (100, "ddpm")]):
+        capsys.readouterr()
+        assert main([*argv, "--steps", str(steps), "--sampler", sampler]) == 0  # each alone, the same seed
+        alone = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert np.isclose(alone["rmse_mean"], compared[name]["rmse_mean"])
+        assert np.isclose(alone["rmse_min_of_samples"], compared[name]["rmse_min_of_samples"])
+
+
 def test_predict_command_bad_input(tmp_path, capsys, checkpoint):
     ckpt, demos = checkpoint
     (tmp_path / "empty").mkdir()

@@ -5,7 +5,8 @@
 The npz holds `goals` (D, K, N, 3) world-frame predictions (an object array of (K, N_i, 3) when the demos' point
 counts differ), `files` (D,) and, with ground truth, `rmse` (D, K). The printed RMSE is the mean over demos of the
 min over samples (docs/reference.md, Evaluation), and the mean over all samples; `--summary FILE` keeps it as JSON with
-the command, machine and date.
+the command, machine and date. `--compare-samplers` scores the same demos, seed and noise with each of
+COMPARED_SAMPLERS as well (how much an under-trained checkpoint depends on its sampler).
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
 from tax3d import options
 from tax3d.options import NonNegative, OutputFile, Positive
+
+COMPARED_SAMPLERS = ((10, "ddpm"), (10, "ddim"), (100, "ddpm"))  # (steps, sampler)
 
 
 @dataclass
@@ -65,6 +68,9 @@ class Args:
     """demos denoised together in one batch"""
     device: str = "cpu"
     """cpu, cuda, cuda:K or auto (CUDA when there is one)"""
+    compare_samplers: bool = False
+    """also score the demos with the 10-step DDPM, the 10-step DDIM and the 100-step DDPM (same seed), in the
+    summary under samplers"""
 
 
 def run(args: Args) -> int:
@@ -91,6 +97,15 @@ def run(args: Args) -> int:
     summary = {"demos": len(demos), "samples": args.samples, "steps": args.steps or model.config.diffusion.sample_steps,
                "rmse_min_of_samples": float(errors.min(1).mean()), "rmse_mean": float(errors.mean()),
                "seconds": round(seconds, 2)}
+    if args.compare_samplers and model.spec.diffusion:
+        summary["samplers"] = {}
+        for steps, sampler in COMPARED_SAMPLERS:
+            compared = model.predict_scenes(scenes, num_samples=args.samples, steps=steps, sampler=sampler,
+                                            max_points=args.max_points, seed=args.seed,
+                                            batch_scenes=args.batch_scenes, progress=True)
+            found = np.stack([rmse(g, d["action_pc"] + d["flow"]) for g, d in zip(compared, demos)])
+            summary["samplers"][f"{sampler}_{steps}"] = {"rmse_min_of_samples": float(found.min(1).mean()),
+                                                         "rmse_mean": float(found.mean())}
     if args.baseline:
         baseline = MeanGoalBaseline.fit([load_demo(p) for p in demo_files(args.baseline)])
         summary["rmse_mean_goal_baseline"] = float(np.mean(

@@ -65,6 +65,15 @@ def _cell(value, fmt: str) -> str:
     return "-" if value is None else fmt.format(value)
 
 
+
+def retired(d: dict) -> str:
+    """For a kept summary made by a script that has since become a `tax3d` option: the command to use today."""
+    if d["command"].startswith("python scripts/oracle_policy.py"):
+        return f" (today: `tax3d eval --goal {d.get('goal', 'demo')}` with the same options)"
+    if d["command"].startswith("python scripts/sampler_check.py"):
+        return " (today: `tax3d predict --compare-samplers`, one checkpoint at a time)"
+    return ""
+
 class Page:
     """One page's declaration with its sources loaded."""
 
@@ -200,8 +209,7 @@ class Page:
             else:
                 offset = ", ".join(f"{v:g}" for v in d.get("offset", ()))
                 how = f"`{d['command']}`" + (f" (gripper-target offset ({offset}))" if offset else "")
-                if d["command"].startswith("python scripts/oracle_policy.py"):  # the script became an eval option
-                    how += f" (today: `tax3d eval --goal {d.get('goal', 'demo')}` with the same options)"
+                how += retired(d)
             config = f" Configuration: [{row['config']}]({row['config']})." if row.get("config") else ""
             config += f" Shipped as `{row['shipped']}`." if row.get("shipped") else ""
             lines.append(f"- **{row['label']}** ([{row['summary']}]({row['summary']})):{made} {how}, on "
@@ -211,7 +219,8 @@ class Page:
             lines.append(f"- curve **{c['label']}** ([{c['summary']}]({c['summary']})): the run `{d['run']}`.")
         for s in self.spec.get("source", []):
             d = self.data[s["id"]]
-            lines.append(f"- {s['label']} ([{s['summary']}]({s['summary']})): `{d['command']}`, {d['date']}.")
+            lines.append(f"- {s['label']} ([{s['summary']}]({s['summary']})): `{d['command']}`{retired(d)}, "
+                         f"{d['date']}.")
         return lines
 
     def timings(self) -> list[str]:
