@@ -3,7 +3,7 @@
     python scripts/model_card.py checkpoints/tax3d-cd-unimodal --log docs/results/training/RUN-log.json \
         --eval docs/results/evals/NAME.json --data-command "..." --train-command "..."
 
---log is a training log kept as JSON (`{"records": [...]}` from log.jsonl, see --keep-log), --eval a kept
+--log is a run's log.jsonl, or a kept JSON `{"records": [...]}` of its plan, validation and last lines; --eval a kept
 `tax3d eval` summary. The card says what the checkpoint is for, how it was made and how well it does, beside the
 paper's success and RMSE for the same task and variant (docs/results/paper.toml).
 """
