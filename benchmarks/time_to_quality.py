@@ -10,6 +10,11 @@ minutes and validates `--validations` times on the first `--val-demos` demos of 
 sees, with the checkpoint's own sampler and steps (the ones `tax3d predict` uses by default). Prints one JSON
 object, also written to OUT/time_to_quality.json: per run, its options, steps per minute and every validation
 (minutes, step, val_rmse: min over `--val-samples` samples, val_rmse_mean: mean over them).
+
+    python benchmarks/time_to_quality.py --collect NAME RUN_DIR "COMMAND" --out runs/finals
+
+`--collect` (repeatable) trains nothing: it writes the same JSON for runs already made by `tax3d train
+--train.minutes M` (each run's folder and the command that made it), such as a finalist trained alone.
 """
 
 from __future__ import annotations
@@ -49,8 +54,36 @@ def summary(out: Path, options: str, command: list[str]) -> dict:
             "steps_per_minute": round(last["step"] / (last["seconds"] / 60), 1), "curve": curve}
 
 
+def collect(runs: list[list[str]], out: Path) -> int:
+    """The JSON of runs already trained: each NAME RUN_DIR COMMAND; the settings come from the runs' config.json."""
+    results = {}
+    for name, folder, command in runs:
+        if not (Path(folder) / "log.jsonl").is_file():
+            print(f"time_to_quality: --collect {folder}: no log.jsonl; expected a `tax3d train` output folder",
+                  file=sys.stderr)
+            return 2
+        results[name] = summary(Path(folder), "", shlex.split(command))
+    first = next(iter(results.values()))
+    config, plan = first["config"], first["plan"] or {}
+    result = {"benchmark": "time_to_quality", "collected": True, "cores_per_run": 1, "minutes": plan.get("minutes"),
+              "preset": "cpu", "train": config["data"]["train"], "val": config["data"]["val"],
+              "val_demos": config["train"]["val_demos"], "val_samples": config["train"]["val_samples"],
+              "machine": provenance.machine(), "date": provenance.today(),
+              "wall_minutes": max(r["minutes"] for r in results.values()), "runs": results}
+    text = json.dumps(result, indent=1)
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "time_to_quality.json", text + "\n")
+    print(text)
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--collect", nargs=3, action="append", metavar=("NAME", "RUN_DIR", "COMMAND"))
+    if "--collect" in sys.argv:
+        parser.add_argument("--out", type=Path, default=Path("runs/time_to_quality"))
+        args = parser.parse_args()
+        return collect(args.collect, args.out)
     parser.add_argument("--minutes", type=float, required=True)
     parser.add_argument("--train", nargs="+", required=True)
     parser.add_argument("--val", nargs="+", required=True)
