@@ -270,8 +270,9 @@ def test_measurement_pages_from_fixture_json(measured):
                                "RMSE 0.700 after 65 minutes** (mean-goal floor 1.750;")
     assert training.endswith("<!-- /study -->\nafter\n") and "old" not in training
     row_a = next(line for line in training.splitlines() if line.startswith("| ttq-1 | a |"))
-    # 15 min: the validation at 14; 30: at 29; 60: at 61 (within 10%); whole-run and first-steps rates
-    assert "| 2.000 (14 min) | 1.500 (29 min) | 0.900 (61 min) | 0.900 (61 min) | 100 | 120 |" in row_a
+    # 15 min: the validation at 14; 30: at 29; 60: at 61 (within 10%); 120: the last, at 61; whole-run and
+    # first-steps rates
+    assert "| 2.000 (14 min) | 1.500 (29 min) | 0.900 (61 min) | 0.900 (61 min) | 0.900 (61 min) | 100 | 120 |" in row_a
     assert "![validation RMSE against minutes](results/training/time_to_quality.png)" in training
     assert "[training/ttq-1.json](results/training/ttq-1.json) on fixture machine, 2026-02-03" in training
     assert (measured / "training" / "time_to_quality.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
