@@ -232,21 +232,20 @@ class Page:
         return lines
 
     def spread(self) -> list[str]:
+        def table(d: dict, rows: list[tuple[str, str]]) -> list[str]:
+            return ["| | " + " | ".join(SPLITS) + " |", "| --- |" + " --- |" * 3,
+                    *[f"| {label} | " + " | ".join(f"{d[k][key]:.3f}" for k in SPLITS) + " |" for label, key in rows],
+                    ""]
+
         lines = []
         if "goal-spread" in self.data:
-            g = self.data["goal-spread"]
-            lines += ["| | " + " | ".join(SPLITS) + " |", "| --- |" + " --- |" * 3,
-                      "| mean goal of train in the anchor frame | "
-                      + " | ".join(f"{g[k]['mean_goal_rmse']:.3f}" for k in SPLITS) + " |",
-                      "| the same, turned with the anchor's true rotation (an oracle) | "
-                      + " | ".join(f"{g[k]['rotated_mean_goal_rmse']:.3f}" for k in SPLITS) + " |", ""]
+            lines += table(self.data["goal-spread"], [
+                ("mean goal of train in the anchor frame", "mean_goal_rmse"),
+                ("the same, turned with the anchor's true rotation (an oracle)", "rotated_mean_goal_rmse")])
         if "mode-spread" in self.data:
-            m = self.data["mode-spread"]
-            lines += ["| | " + " | ".join(SPLITS) + " |", "| --- |" + " --- |" * 3,
-                      "| RMSE between a cloth's two goals | "
-                      + " | ".join(f"{m[k]['goal_separation_rmse']:.3f}" for k in SPLITS) + " |",
-                      "| RMSE of their midpoint to either goal | "
-                      + " | ".join(f"{m[k]['midpoint_rmse']:.3f}" for k in SPLITS) + " |", ""]
+            lines += table(self.data["mode-spread"], [
+                ("RMSE between a cloth's two goals", "goal_separation_rmse"),
+                ("RMSE of their midpoint to either goal", "midpoint_rmse")])
         return lines
 
     # -- the page -------------------------------------------------------------------------------------------------
