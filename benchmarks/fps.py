@@ -1,6 +1,6 @@
 """Farthest point sampling on the CPU: the numpy loop against the torch loop, per cloud and per training sample.
 
-    python benchmarks/fps.py [--rounds 7] [--threads 1]
+    python benchmarks/fps.py [--rounds 7] [--threads 1] [--demos DIR ...]
 
 Prints one JSON object. A training sample of the `paper` preset draws 512 of a cloth's ~550-650 action points and
 512 of a hanger's ~1,300 anchor points with FPS (`tax3d.data.dataset.make_sample`); on a CPU those two calls were
@@ -17,10 +17,42 @@ import statistics
 import sys
 import time
 
+import numpy as np
 import torch
 
 from tax3d import geometry, provenance
-from tax3d.data.dataset import make_sample
+from tax3d.data.dataset import demo_files, make_sample
+from tax3d.data.format import load_demo
+
+try:
+    import fpsample
+except ImportError:
+    fpsample = None
+
+
+def fps_loop_fpsample(pts: torch.Tensor, k: int, far: torch.Tensor) -> torch.Tensor:
+    """The `fpsample` package's vanilla FPS, one row at a time, from the same first indices."""
+    return torch.from_numpy(np.stack([fpsample.fps_sampling(pts[b].numpy(), k, start_idx=int(far[b]))
+                                      for b in range(len(pts))]).astype(np.int64))
+
+
+def agreement(folders: list[str], loop, starts: int = 4) -> dict:
+    """How many real clouds (action and anchor of each demo, `starts` first indices each, 256 and 512 points) get
+    the torch loop's indices from `loop`."""
+    same = total = 0
+    for path in demo_files(folders):
+        demo = load_demo(path)
+        for key in ("action_pc", "anchor_pc"):
+            points = torch.as_tensor(demo[key], dtype=torch.float64)
+            pts = (points - points.mean(0)).float()[None]
+            for k in (256, 512):
+                if k >= len(points):
+                    continue
+                for s in range(starts):
+                    far = torch.tensor([s * len(points) // starts])
+                    same += int(torch.equal(loop(pts, k, far), geometry.fps_loop_torch(pts, k, far)))
+                    total += 1
+    return {"clouds": total, "same_indices": same}
 
 
 def clouds(seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -46,12 +78,15 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--repeats", type=int, default=10, help="calls per timing")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (a data worker's: 1)")
+    parser.add_argument("--demos", nargs="*", default=[], help="demo folders whose clouds check the indices")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     action, anchor, goal = clouds()
     loops = {"torch": geometry.fps_loop_torch, "numpy": geometry.fps_loop_numpy}
+    if fpsample is not None:
+        loops["fpsample"] = fps_loop_fpsample
     default = geometry.fps_loop_numpy
-    same = True
+    same = {name: True for name in loops if name != "torch"}
     per_cloud = {name: [] for name in loops}
     per_sample = {name: [] for name in loops}
     for r in range(args.rounds):
@@ -68,10 +103,11 @@ def main() -> int:
                 geometry.fps_loop_numpy = default
         pts = (anchor - anchor.mean(0)).float()[None]
         far = torch.tensor([r])
-        same = same and torch.equal(loops["torch"](pts, 512, far), loops["numpy"](pts, 512, far))
+        for name in same:
+            same[name] = same[name] and torch.equal(loops["torch"](pts, 512, far), loops[name](pts, 512, far))
     ms = {name: round(1000 * statistics.median(v), 2) for name, v in per_cloud.items()}
     sample_ms = {name: round(1000 * statistics.median(v), 2) for name, v in per_sample.items()}
-    print(json.dumps({
+    result = {
         "command": " ".join(["python", "benchmarks/fps.py", *sys.argv[1:]]),
         "machine": provenance.machine(f"torch {torch.__version__}"),
         "date": provenance.today(),
@@ -80,8 +116,22 @@ def main() -> int:
         "ms_per_training_sample_cd_512_512": sample_ms,
         "speedup_per_cloud": round(ms["torch"] / ms["numpy"], 2),
         "speedup_per_sample": round(sample_ms["torch"] / sample_ms["numpy"], 2),
-        "same_indices": bool(same),
-    }, indent=1))
+        "same_indices": bool(same["numpy"]),
+    }
+    if fpsample is None:
+        result["fpsample"] = "not installed: pip install fpsample==1.0.2 to time it"
+    else:
+        result["fpsample"] = {
+            "version": fpsample.__version__,
+            "speedup_per_cloud_over_numpy": round(ms["numpy"] / ms["fpsample"], 2),
+            "speedup_per_sample_over_numpy": round(sample_ms["numpy"] / sample_ms["fpsample"], 2),
+            "same_indices_synthetic": bool(same["fpsample"]),
+        }
+        if args.demos:
+            result["fpsample"]["real_clouds"] = {"demos": args.demos, **agreement(args.demos, fps_loop_fpsample)}
+    if args.demos:
+        result["numpy_real_clouds"] = {"demos": args.demos, **agreement(args.demos, geometry.fps_loop_numpy)}
+    print(json.dumps(result, indent=1))
     return 0
 
 
