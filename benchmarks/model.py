@@ -1,7 +1,7 @@
 """Training-step time and FLOP rate at the paper's configuration, and prediction latency and RMSE of 100 vs 10 steps.
 
     python benchmarks/model.py [--threads 1] [--checkpoint checkpoints/tax3d-cd-official-simple] [--samples 3]
-                               [--parts train,predict,large] [--rounds 9]
+                               [--parts train,predict,large,precision] [--rounds 9]
 
 Prints one JSON object. The FLOP rate is compared with this machine's float32 matmul peak measured in the same run
 (a timed 2048 x 2048 torch.mm), so the ratio holds on a shared, noisy machine. The prediction part uses the shipped
@@ -112,6 +112,40 @@ def cpu_preset(repeats: int) -> dict:
     return result
 
 
+def precision_steps(rounds: int) -> dict:
+    """Seconds per training step in float32 and under bfloat16 autocast (what `--train.precision bf16` does), for
+    the cpu and paper networks, interleaved round by round so that a disturbance lands on both alike."""
+    result = {}
+    for name, config in (("cpu", cfg.cpu()), ("paper", cfg.paper())):
+        torch.manual_seed(0)
+        model = Tax3D(config)
+        optimizer = torch.optim.AdamW(model.parameters(), lr=1e-4, weight_decay=1e-5)
+        B = config.train.batch_size
+        batch = {"action": torch.randn(B, config.data.num_action_points, 3),
+                 "anchor": torch.randn(B, config.data.num_anchor_points, 3),
+                 "target": torch.randn(B, config.data.num_action_points, 3)}
+
+        def step(bf16: bool):
+            with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+                losses = model.loss(batch)
+            optimizer.zero_grad(set_to_none=True)
+            losses["loss"].backward()
+            optimizer.step()
+
+        times = {"fp32": [], "bf16": []}
+        for label in times:
+            step(label == "bf16")
+        for _ in range(rounds):
+            for label in times:
+                start = time.perf_counter()
+                step(label == "bf16")
+                times[label].append(time.perf_counter() - start)
+        fp32, bf16 = float(np.median(times["fp32"])), float(np.median(times["bf16"]))
+        result[name] = {"fp32_seconds": fp32, "bf16_seconds": bf16, "speedup_bf16": fp32 / bf16}
+    result["rounds"] = rounds
+    return result
+
+
 SAMPLERS = (("ddpm_100", 100, "ddpm"), ("ddpm_10", 10, "ddpm"), ("ddim_10", 10, "ddim"))
 
 
@@ -206,14 +240,15 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5, help="timed calls per training-step measurement")
     parser.add_argument("--rounds", type=int, default=9, help="interleaved rounds of prediction-latency calls")
     parser.add_argument("--parts", default="train,predict", help="comma-separated: train (training step, FLOP "
-                        "rate, cpu preset), predict (latency and RMSE), large (20,000 action points)")
+                        "rate, cpu preset), predict (latency and RMSE), large (20,000 action points), precision "
+                        "(float32 against bfloat16 autocast)")
     args = parser.parse_args()
     if args.threads > 0:
         torch.set_num_threads(args.threads)
 
     parts = set(args.parts.split(","))
-    if not parts or parts - {"train", "predict", "large"}:
-        print(f"error: --parts {args.parts!r}: expected a comma-separated list of train, predict, large",
+    if not parts or parts - {"train", "predict", "large", "precision"}:
+        print(f"error: --parts {args.parts!r}: expected a comma-separated list of train, predict, large, precision",
               file=sys.stderr)
         sys.exit(2)
     out = {
@@ -236,6 +271,8 @@ def main() -> None:
             out["predict"] = prediction(args.checkpoint, args.samples, args.rounds)
         else:
             out["predict"] = {"note": f"no checkpoint at {args.checkpoint}"}
+    if "precision" in parts:
+        out["precision"] = precision_steps(args.rounds)
     if "large" in parts:
         out["large_clouds"] = large_clouds(args.checkpoint, args.samples, args.rounds)
     print(json.dumps(out))
