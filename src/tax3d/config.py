@@ -127,7 +127,7 @@ def cpu() -> Config:
     """Settings that learn quickly on a 2-core CPU; each difference from `paper` is measured in docs/training.md."""
     return Config(
         model=ModelConfig(hidden_size=64, depth=3, num_heads=4),
-        diffusion=DiffusionConfig(prediction="sample"),
+        diffusion=DiffusionConfig(prediction="sample", loss="v"),
         data=DataConfig(num_action_points=256, num_anchor_points=256, rotate=False, subsets=32),
         train=TrainConfig(lr=1e-3, steps=4000, val_every=500, val_samples=2, val_demos=10, threads=1,
                           num_workers=1, ema=0.999),
