@@ -184,8 +184,9 @@ PROV = {"machine": "fixture machine", "date": "2026-02-03"}
 def study(curves: dict[str, list[tuple[float, float]]]) -> dict:
     return {**PROV, "val": ["v"], "val_demos": 20, "val_samples": 2, "runs": {
         name: {"options": f"--opt {name}", "command": f"tax3d train --out runs/{name}", "steps_per_minute": 100.0,
-               "plan": {"step_seconds": 0.5},
-               "curve": [{"minutes": m, "step": int(m * 100), "val_rmse": r} for m, r in curve]}
+               "plan": {"step_seconds": 0.5}, "steps": int(curve[-1][0] * 100),
+               "curve": [{"minutes": m, "step": int(m * 100), "val_rmse": r, "val_rmse_mean": r + 0.25}
+                         for m, r in curve]}
         for name, curve in curves.items()}}
 
 
@@ -227,7 +228,15 @@ def measurement_json() -> dict[str, dict]:
                                    "first_plan_steps": 900, "stopped_at_step": 300, "training_minutes": 45,
                                    "best_step": 600, "machine": "fixture machine"},
         "training/ttq-1.json": study({"a": [(14, 2.0), (29, 1.5), (61, 0.9)], "b": [(20, 1.2), (65, 0.7)]}),
+        "training/ttq-5.json": {**study({"v-loss-30min": [(8, 1.9), (15, 1.6), (22, 1.5), (30, 1.25)]}),
+                                "minutes": 30.0},
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
+        "precision_benchmark.json": {**PROV, "command": "python benchmarks/model.py --parts precision", "precision": {
+            "cpu": {"speedup_bf16": 0.5}, "paper": {"speedup_bf16": 1.5}}},
+        "fps_benchmark_fpsample.json": {**PROV, "command": "python benchmarks/fps.py", "machine": "fixture machine",
+                                        "fpsample": {"speedup_per_sample_over_numpy": 2.0,
+                                                     "real_clouds": {"clouds": 8, "same_indices": 3}},
+                                        "numpy_real_clouds": {"clouds": 8, "same_indices": 8}},
         "../../checkpoints/tax3d-cd-official-simple/config.json": {"train": {
             "steps": 800, "time_limit": 50.0, "val_demos": 4, "val_samples": 2, "val_every": 100}},
     }
@@ -275,6 +284,9 @@ def test_measurement_pages_from_fixture_json(measured):
     assert "| 2.000 (14 min) | 1.500 (29 min) | 0.900 (61 min) | 0.900 (61 min) | 0.900 (61 min) | 100 | 120 |" in row_a
     assert "![validation RMSE against minutes](results/training/time_to_quality.png)" in training
     assert "[training/ttq-1.json](results/training/ttq-1.json) on fixture machine, 2026-02-03" in training
+    assert "planned for 30 minutes (`--train.minutes 30`, 3,000 steps), ends at validation RMSE 1.250" in training
+    assert "runs at 0.50x the speed of the `float32` step (the paper's larger network: 1.50x)" in training
+    assert "points on only 3 of 8 real cloth and bag clouds (the numpy loop: 8)" in training
     assert (measured / "training" / "time_to_quality.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["results", "--root", str(measured), "--check"]) == 0
     assert results.build(measured) == results.build(measured)  # the plot too
@@ -299,7 +311,7 @@ def test_check_names_a_measurement_page_whose_json_changed(measured, capsys, rel
 
 @pytest.mark.parametrize("rel", ["sim_benchmark_hangbag.json", "official_training.json", "model_benchmark.json",
                                  "large_clouds_benchmark.json",
-                                 "training/unimodal-floor-20.json", "training/ttq-1.json"])
+                                 "training/unimodal-floor-20.json", "training/ttq-5.json"])
 def test_missing_measurement_json_is_a_one_line_error(measured, capsys, rel):
     (measured / rel).unlink()
     err = one_line_error(capsys, ["results", "--root", measured])
