@@ -36,10 +36,10 @@ def fps_loop_fpsample(pts: torch.Tensor, k: int, far: torch.Tensor) -> torch.Ten
                                       for b in range(len(pts))]).astype(np.int64))
 
 
-def agreement(folders: list[str], loop, starts: int = 4) -> dict:
-    """How many real clouds (action and anchor of each demo, `starts` first indices each, 256 and 512 points) get
-    the torch loop's indices from `loop`."""
-    same = total = 0
+def agreement(folders: list[str], loops: dict, starts: int = 4) -> dict:
+    """Per loop of `loops`, how many real clouds (action and anchor of each demo, `starts` first indices each, 256 and
+    512 points) get the torch loop's indices; the torch loop runs once per cloud."""
+    same, total = dict.fromkeys(loops, 0), 0
     for path in demo_files(folders):
         demo = load_demo(path)
         for key in ("action_pc", "anchor_pc"):
@@ -50,9 +50,11 @@ def agreement(folders: list[str], loop, starts: int = 4) -> dict:
                     continue
                 for s in range(starts):
                     far = torch.tensor([s * len(points) // starts])
-                    same += int(torch.equal(loop(pts, k, far), geometry.fps_loop_torch(pts, k, far)))
+                    reference = geometry.fps_loop_torch(pts, k, far)
+                    for name, loop in loops.items():
+                        same[name] += int(torch.equal(loop(pts, k, far), reference))
                     total += 1
-    return {"clouds": total, "same_indices": same}
+    return {name: {"demos": folders, "clouds": total, "same_indices": n} for name, n in same.items()}
 
 
 def clouds(seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -127,10 +129,11 @@ def main() -> int:
             "speedup_per_sample_over_numpy": round(sample_ms["numpy"] / sample_ms["fpsample"], 2),
             "same_indices_synthetic": bool(same["fpsample"]),
         }
-        if args.demos:
-            result["fpsample"]["real_clouds"] = {"demos": args.demos, **agreement(args.demos, fps_loop_fpsample)}
     if args.demos:
-        result["numpy_real_clouds"] = {"demos": args.demos, **agreement(args.demos, geometry.fps_loop_numpy)}
+        real = agreement(args.demos, {name: loop for name, loop in loops.items() if name != "torch"})
+        result["numpy_real_clouds"] = real["numpy"]
+        if "fpsample" in real:
+            result["fpsample"]["real_clouds"] = real["fpsample"]
     print(json.dumps(result, indent=1))
     return 0
 

@@ -64,15 +64,21 @@ ATTENTION_FLOPS = {
 }
 
 
-def training_step(repeats: int, config: cfg.Config | None = None) -> dict:
-    """One AdamW step of TAX3D-CD (default: the paper's configuration, batch 16, 512 action + 512 anchor points)."""
-    config = config or cfg.paper()
+def model_and_batch(config: cfg.Config) -> tuple[Tax3D, torch.optim.Optimizer, dict]:
+    """A seeded TAX3D model of `config`, its AdamW optimizer and one random batch of the configured sizes."""
     torch.manual_seed(0)
     model = Tax3D(config)
     optimizer = torch.optim.AdamW(model.parameters(), lr=1e-4, weight_decay=1e-5)
     B, N = config.train.batch_size, config.data.num_action_points
     batch = {"action": torch.randn(B, N, 3), "anchor": torch.randn(B, config.data.num_anchor_points, 3),
              "target": torch.randn(B, N, 3)}
+    return model, optimizer, batch
+
+
+def training_step(repeats: int, config: cfg.Config | None = None) -> dict:
+    """One AdamW step of TAX3D-CD (default: the paper's configuration, batch 16, 512 action + 512 anchor points)."""
+    config = config or cfg.paper()
+    model, optimizer, batch = model_and_batch(config)
 
     def step():
         losses = model.loss(batch)
@@ -117,13 +123,7 @@ def precision_steps(rounds: int) -> dict:
     the cpu and paper networks, interleaved round by round so that a disturbance lands on both alike."""
     result = {}
     for name, config in (("cpu", cfg.cpu()), ("paper", cfg.paper())):
-        torch.manual_seed(0)
-        model = Tax3D(config)
-        optimizer = torch.optim.AdamW(model.parameters(), lr=1e-4, weight_decay=1e-5)
-        B = config.train.batch_size
-        batch = {"action": torch.randn(B, config.data.num_action_points, 3),
-                 "anchor": torch.randn(B, config.data.num_anchor_points, 3),
-                 "target": torch.randn(B, config.data.num_action_points, 3)}
+        model, optimizer, batch = model_and_batch(config)
 
         def step(bf16: bool):
             with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
