@@ -183,6 +183,13 @@ def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.Config:
     return config
 
 
+def config_of_command(argv: list[str]) -> cfg.Config:
+    """The configuration a fresh run of `tax3d train ARGV` starts from (before a --train.minutes plan)."""
+    import tyro
+
+    return resolve_config(tyro.cli(Args, args=argv, prog="tax3d train"), Path("."), None)
+
+
 def default_preset(name: str | None) -> str:
     """The preset asked for, or the one that fits this machine: paper with a GPU, cpu without (said on stderr)."""
     if name is not None:

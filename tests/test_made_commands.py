@@ -1,0 +1,58 @@
+"""The training command beside a shipped checkpoint (on its result page and in its model card) makes that checkpoint's
+configuration with today's presets: a preset that changed since would otherwise make another model."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+import shlex
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from tax3d import config as cfg
+from tax3d.train import config_of_command
+
+ROOT = Path(__file__).resolve().parents[1]
+# train fields that change the weights; `steps` too unless the run was planned in minutes
+TRAIN_FIELDS = ("lr", "weight_decay", "warmup_steps", "batch_size", "grad_clip", "seed", "ema", "minutes",
+                "time_limit", "precision")
+
+
+def kept_commands() -> list:
+    """A case for every `tax3d train` command given beside a kept configuration: a result row's `made` with its
+    `shipped` checkpoint or `config` JSON, and the training command of each model card."""
+    results = ROOT / "docs" / "results"
+    found = []
+    for page in sorted((results / "pages").glob("*.toml")):
+        for row in tomllib.loads(page.read_text()).get("row", []):
+            kept = (ROOT / row["shipped"] / "config.json") if row.get("shipped") else (
+                results / row["config"] if row.get("config") else None)
+            if kept is not None and re.match(r"\S*tax3d(\.cli)? train ", row.get("made", "")):
+                found.append(pytest.param(kept, row["made"], id=f"{page.stem}:{row['id']}"))
+    for card in sorted((ROOT / "checkpoints").glob("*/README.md")):
+        for line in card.read_text().splitlines():
+            if line.startswith("tax3d train"):
+                found.append(pytest.param(card.parent / "config.json", line, id=card.parent.name))
+    return found
+
+
+def differences(made: cfg.Config, shipped: cfg.Config) -> list[str]:
+    train = TRAIN_FIELDS + (() if shipped.train.minutes else ("steps",))
+    out = []
+    for section in ("model", "diffusion", "data", "train"):
+        for f in dataclasses.fields(getattr(made, section)):
+            a, b = getattr(getattr(made, section), f.name), getattr(getattr(shipped, section), f.name)
+            if a != b and (section != "train" or f.name in train):
+                out.append(f"{section}.{f.name}: {a!r} against {b!r}")
+    return out
+
+
+@pytest.mark.parametrize("kept,command", kept_commands())
+def test_the_command_beside_a_kept_configuration_makes_it_with_todays_presets(kept, command):
+    argv = shlex.split(command.split("#")[0])
+    made = config_of_command(argv[argv.index("train") + 1:])
+    assert not differences(made, cfg.from_dict(json.loads(kept.read_text()), str(kept)))
+
