@@ -271,10 +271,10 @@ class Page:
             lines += [f"## {title}", "", self.fill(spec["spread_note"]), "", *self.spread()]
         if self.curves:
             lines += ["## Validation RMSE over training", "", *fold("The validation curves", self.curve_table())]
-        lines += ["## Commands", "", "The commands that made each row, the machine and the date. A `tax3d train --preset cpu` command "
-                  "names every option in which the preset of its date differs from today's, so it makes the same "
-                  "configuration today (`tests/test_made_commands.py` checks it "
-                  "for every row whose configuration is kept):", "",
+        lines += ["## Commands", "", "The commands that made each row, the machine and the date. A `tax3d train "
+                  "--preset cpu` command names every option in which the preset of its date differs from today's, "
+                  "so it makes the same configuration today (`tests/test_made_commands.py` checks it for every row "
+                  "whose configuration is kept):", "",
                   *fold("Every command", self.commands())]
         if len(self.timings()) > 2:
             lines += ["## Seconds per episode", "", *fold(
