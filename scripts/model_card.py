@@ -3,8 +3,8 @@
     python scripts/model_card.py checkpoints/tax3d-cd-unimodal --log docs/results/training/RUN-log.json \
         --eval docs/results/evals/NAME.json --data-command "..." --train-command "..."
 
---log is a run's log.jsonl, or a kept JSON `{"records": [...]}` of its plan, validation and last lines; --eval a kept
-`tax3d eval` summary. The card says what the checkpoint is for, how it was made and how well it does, beside the
+--log is a run's log.jsonl, or a kept JSON `{"records": [...]}` of its plan, validation and last lines (left out for a
+run whose log was not kept: the card then says so); --eval a kept `tax3d eval` summary. The card says what the checkpoint is for, how it was made and how well it does, beside the
 paper's success and RMSE for the same task and variant (docs/results/paper.toml).
 """
 
@@ -45,13 +45,27 @@ def success_table(splits: dict, paper: dict | None) -> list[str]:
     return lines
 
 
+def run_lines(config: dict, records: list[dict], plan: dict | None) -> list[str]:
+    """Steps and wall time from the run's log; from its configuration alone when the log was not kept."""
+    threads = config["train"].get("threads", 0)
+    where = ("a GPU" if config["train"].get("device") == "cuda" else "one core" if threads == 1
+             else f"{threads} threads" if threads else "torch's default threads")
+    if not records:
+        limit = config["train"].get("time_limit", 0)
+        return [f"- steps: a {config['train']['steps']:,}-step schedule" +
+                (f", cut by a {limit:g}-minute limit" if limit else "") +
+                f" on {where}; the run's log was not kept, so its steps done and validation curve are not known"]
+    last = records[-1]
+    return [f"- steps: {last['step']}" + (f" (planned for {plan['minutes']:g} minutes)" if plan else ""),
+            f"- wall time: {last['seconds'] / 60:.0f} minutes on {where}"]
+
+
 def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str, train_command: str) -> str:
     config = json.loads((checkpoint / "config.json").read_text())
     plan = next((r["plan"] for r in records if "plan" in r), None)
     vals = [r for r in records if "val_rmse" in r]
     best = min(vals, key=lambda r: r["val_rmse"]) if vals else None
     task, variant = config["data"]["task"], config["model"]["variant"]
-    last = records[-1]
     lines = [
         f"# TAX3D-{variant.upper()} for {task}",
         "",
@@ -79,8 +93,7 @@ def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str
         f"- network: hidden {config['model']['hidden_size']}, depth {config['model']['depth']}; loss "
         f"`{config['diffusion'].get('loss', 'epsilon')}`, prediction `{config['diffusion']['prediction']}`, "
         f"sampler {config['diffusion']['sample_steps']}-step {config['diffusion']['sampler'].upper()}",
-        f"- steps: {last['step']}" + (f" (planned for {plan['minutes']:g} minutes)" if plan else ""),
-        f"- wall time: {last['seconds'] / 60:.0f} minutes on one core",
+        *run_lines(config, records, plan),
     ]
     if best is not None:
         lines.append(f"- best validation RMSE: {best['val_rmse']:.3f} at step {best['step']} (these weights)")
@@ -106,12 +119,14 @@ def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoint", type=Path)
-    parser.add_argument("--log", type=Path, required=True, help="a run's log.jsonl, or its kept JSON")
+    parser.add_argument("--log", type=Path, help="a run's log.jsonl, or its kept JSON (left out: not kept)")
     parser.add_argument("--eval", type=Path, required=True)
     parser.add_argument("--data-command", required=True)
     parser.add_argument("--train-command", required=True)
     args = parser.parse_args()
-    if args.log.suffix == ".jsonl":
+    if args.log is None:
+        records = []
+    elif args.log.suffix == ".jsonl":
         records = read_log(args.log)
     else:
         records = json.loads(args.log.read_text())["records"]

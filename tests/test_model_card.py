@@ -40,3 +40,23 @@ def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path):
     assert "| ood | 40 | 0.50 | 0.85 | 0.900 | 0.395 | - |" in card
     assert "- steps: 3 (planned for 30 minutes)" in card and "- wall time: 30 minutes" in card
     assert "best validation RMSE: 0.600 at step 3" in card and "DATA\nTRAIN" in card
+
+
+def test_model_card_of_a_run_whose_log_was_not_kept_says_so(tmp_path):
+    checkpoint = tmp_path / "tax3d-cp-x"
+    model = tiny_model()
+    model.config.data.task, model.config.model.variant = "hangbag", "cp"
+    model.config.train.steps, model.config.train.time_limit, model.config.train.threads = 4000, 45.0, 1
+    model.save_pretrained(checkpoint)
+    evaluation = tmp_path / "eval.json"
+    evaluation.write_text(json.dumps({"summary": {"task": "hangbag", "date": "2026-01-01", "machine": "m",
+                                                  "command": "tax3d eval ...", "splits": {
+                                                      "ood": {"episodes": 40, "success_rate": 0.8, "rmse": 0.5}}}}))
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "model_card.py"), str(checkpoint),
+                           "--eval", str(evaluation), "--data-command", "DATA", "--train-command", "TRAIN"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    card = (checkpoint / "README.md").read_text()
+    assert card.startswith("# TAX3D-CP for hangbag") and "| ood | 40 | 0.80 | 0.78 | 0.500 | 0.233 | - |" in card
+    assert "- steps: a 4,000-step schedule, cut by a 45-minute limit on one core; the run's log was not kept" in card
+    assert "wall time" not in card and "best validation" not in card
