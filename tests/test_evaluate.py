@@ -130,6 +130,42 @@ def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
     assert np.allclose(policy.targets(state.cloth), state.cloth[[0, 2]] + 1.0 + [0.0, -0.5, 1.0])
 
 
+def test_medoid_is_the_sample_nearest_the_others():
+    from tax3d.metrics import medoid
+
+    rng = np.random.default_rng(0)
+    centre = rng.normal(size=(20, 3))
+    samples = np.stack([centre + 2.0, centre - 1.5, centre + 0.1, centre + [3.0, 0.0, 0.0]])
+    assert medoid(samples) == 2
+    assert medoid(samples[[3, 2, 1, 0]]) == 1
+    assert medoid(samples[:1]) == 0
+
+
+def test_select_medoid_reaches_the_jobs_the_gripper_targets_and_the_results(checkpoint):
+    from tax3d.evaluate import plan_jobs
+    from tax3d.policy import GoalPolicy
+
+    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].select == "first"
+    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, select="medoid"))[0].select == "medoid"
+    shifts = np.array([5.0, 1.0, 0.0, -4.0, 3.0])[:, None, None]  # summed distances: 1.0 is least
+
+    class Spread:
+        def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=None):
+            return np.asarray(cloth, dtype=float)[None] + shifts[:num_samples]
+
+    class Env:
+        mesh = type("Mesh", (), {"grip_vertices": staticmethod(lambda: (0, 2))})()
+
+        def anchor_points(self):
+            return np.zeros((4, 3))
+
+    state = type("State", (), {"cloth": np.arange(9.0).reshape(3, 3)})()
+    first = GoalPolicy(Spread(), num_samples=5)(Env(), state)
+    assert first.executed == 0 and np.allclose(first.targets(state.cloth), state.cloth[[0, 2]] + 5.0)
+    chosen = GoalPolicy(Spread(), num_samples=5, select="medoid")(Env(), state)
+    assert chosen.executed == 1 and np.allclose(chosen.targets(state.cloth), state.cloth[[0, 2]] + 1.0)
+
+
 def test_sampler_reaches_the_jobs_and_the_model(checkpoint):
     from tax3d.evaluate import load_model, plan_jobs
     from tax3d.policy import GoalPolicy
@@ -187,6 +223,6 @@ def test_the_demo_goal_and_the_mean_goal_run_through_the_policy(generated, tmp_p
         summary = json.loads((out / "results.json").read_text())["summary"]
         assert summary["variant"] == f"{goal}-goal" and summary["checkpoint"] is None and summary["goal"] == goal
         split = summary["splits"]["unseen"]
-        assert split["episodes"] == 1 and split["rmse"] < 1e-6
+        assert split["episodes"] == 1 and split["rmse"] < 1e-6 and split["executed_rmse"] < 1e-6
         assert split["success_rate"] == 1.0  # the expert's own goal hangs the fixed cloth
     assert "the demos in" in capsys.readouterr().out

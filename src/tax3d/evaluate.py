@@ -42,7 +42,10 @@ class Args:
     episodes: Annotated[int | None, Positive] = None
     """episodes per split (default: every demo of the split's folder, or the paper's size)"""
     samples: Annotated[int, Positive] = 1
-    """goal samples per episode (the policy executes the first); RMSE is their mean, coverage their min"""
+    """goal samples per episode (the policy executes one: --select); RMSE is their mean, coverage their min"""
+    select: Literal["first", "medoid"] = "first"
+    """which goal sample the policy executes: the first (the paper's policy) or the medoid, the one with the least
+    summed RMSE to the other samples"""
     steps: Annotated[int | None, Positive] = None
     """denoising steps (default: the checkpoint's)"""
     sampler: Literal["ddpm", "ddim"] | None = None
@@ -88,6 +91,7 @@ class EvalJob:
     offset: tuple | None = None  # gripper-target offset; None: the task's
     device: str = "cpu"
     goal: str = "model"  # model, demo or mean (Args.goal)
+    select: str = "first"  # the sample the policy executes (Args.select)
     mean_goal: object = None  # with goal "mean": the MeanGoalBaseline fitted on the training demos
 
 
@@ -146,7 +150,8 @@ def run_eval_job(job: EvalJob) -> dict:
         policy = DP3Policy(predictor, job.seed)
     else:
         policy = GoalPolicy(predictor, job.samples, job.steps, job.seed, job.replan_every, trajectory=job.denoising,
-                            offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler)
+                            offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler,
+                            select=job.select)
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
@@ -154,6 +159,7 @@ def run_eval_job(job: EvalJob) -> dict:
         "split": job.split, "name": job.name, "success": bool(ep.success), "exploded": bool(ep.exploded),
         "rmse": None if errors is None else float(errors.mean()),
         "min_rmse": None if errors is None else float(errors.min()),
+        "executed_rmse": None if errors is None else float(errors[getattr(policy, "executed", 0)]),
         "predict_seconds": policy.predict_seconds, "sim_seconds": ep.seconds - policy.predict_seconds,
         "checks": ep.checks, "action_pc": ep.action_pc, "anchor_pc": ep.anchor_pc, "pred_goal": pred,
         "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": list(ep.grip_vertices),
@@ -201,7 +207,7 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
                       sampler=args.sampler, replan_every=args.replan_every, task=task.name, device=args.device,
                       offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset),
-                      goal=args.goal, mean_goal=mean_goal)
+                      goal=args.goal, mean_goal=mean_goal, select=args.select)
         if folder is not None:
             paths = list_demos(folder)[: args.episodes]
             for i, path in enumerate(paths):
@@ -264,7 +270,7 @@ def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_ev
 
 def _failed(job: EvalJob, why: str) -> dict:
     return {"split": job.split, "name": job.name, "success": False, "exploded": False, "error": why, "rmse": None,
-            "min_rmse": None, "predict_seconds": 0.0, "sim_seconds": 0.0, "checks": {}, "action_pc": None,
+            "min_rmse": None, "executed_rmse": None, "predict_seconds": 0.0, "sim_seconds": 0.0, "checks": {}, "action_pc": None,
             "anchor_pc": None, "pred_goal": None, "true_goal": job.true_goal, "released_pc": None,
             "grip_vertices": [], "denoising": None, "cloth_key": cloth_key(job)}
 
@@ -279,6 +285,7 @@ def summarise(results: list[dict], splits: list[str]) -> dict:
         if not rows:
             continue
         scored = [r["rmse"] for r in rows if r["rmse"] is not None]
+        executed = [r["executed_rmse"] for r in rows if r.get("executed_rmse") is not None]
         clothes: dict[str, list[dict]] = {}
         for r in rows:
             if r["true_goal"] is not None and r["pred_goal"] is not None:
@@ -293,6 +300,7 @@ def summarise(results: list[dict], splits: list[str]) -> dict:
             "episodes": len(rows),
             "success_rate": float(np.mean([r["success"] for r in rows])),
             "rmse": float(np.mean(scored)) if scored else None,
+            "executed_rmse": float(np.mean(executed)) if executed else None,
             "coverage_rmse": float(np.mean(coverage)) if coverage else None,
             "precision_rmse": float(np.mean(precision)) if precision else None,
             "predict_seconds": float(np.mean([r["predict_seconds"] for r in rows])),

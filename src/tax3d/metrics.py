@@ -43,6 +43,11 @@ def precision_rmse(samples, goals):
     return best.mean()
 
 
+def medoid(samples) -> int:
+    """Index of the goal sample (K, N, 3) with the least summed RMSE to the other samples: the consensus goal."""
+    return int(rmse(samples[:, None], samples[None]).sum(1).argmin())
+
+
 class MeanGoalBaseline:
     """Predicts the training demos' mean goal in the anchor frame, placed at the new anchor's mean.
 
