@@ -1,4 +1,5 @@
-"""The scripts that keep the summaries `tax3d results` reads: keep_summary.py, mode_spread.py, val_curve.py."""
+"""The scripts that keep the summaries `tax3d results` reads: keep_summary.py, mode_spread.py, val_curve.py,
+success_by_rmse.py."""
 
 from __future__ import annotations
 
@@ -84,3 +85,25 @@ def test_val_curve_kept(tmp_path):
                           capture_output=True, text=True)
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "no validated step" in done.stderr
     assert not (tmp_path / "c2.json").exists()
+
+
+def test_success_by_rmse_bins_the_executed_goals(tmp_path):
+    run = tmp_path / "eval-cd"
+    run.mkdir()
+    episodes = [{"split": split, "name": f"demo_{i}", "success": ok, "executed_rmse": r}
+                for i, (split, ok, r) in enumerate([("unseen", True, 0.1), ("unseen", False, 0.2),
+                                                    ("ood", True, 0.6), ("ood", False, 1.4), ("train", True, 0.9)])]
+    (run / "results.json").write_text(json.dumps({**summary(0.5, 1.0, 0.5, 1.0), "episodes": episodes}))
+    kept = tmp_path / "bins.json"
+    script = str(ROOT / "scripts" / "success_by_rmse.py")
+    done = subprocess.run([sys.executable, script, str(run), str(kept), "--edges", "0,0.5,1"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    data = json.loads(kept.read_text())
+    assert data["episodes"] == 4 and data["success_rate"] == 0.5  # train left out
+    assert [(b["low"], b["high"], b["episodes"], b["success_rate"]) for b in data["bins"]] == [
+        (0.0, 0.5, 2, 0.5), (0.5, 1.0, 1, 1.0), (1.0, None, 1, 0.0)]
+    bad = subprocess.run([sys.executable, script, str(run), str(tmp_path / "x.json"), "--edges", "1,0.5"],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--edges 1,0.5" in bad.stderr
+    assert not (tmp_path / "x.json").exists()
