@@ -121,9 +121,10 @@ def main() -> int:
         print(f"time_to_quality: run(s) {', '.join(failed)} failed; see {args.out}/NAME.stderr", file=sys.stderr)
         return 1
     result = {
-        "benchmark": "time_to_quality", "cores_per_run": 1 if len(args.run) <= len(cores) else len(cores) / len(args.run), "minutes": args.minutes, "preset": args.preset, "train": args.train,
-        "val": args.val, "val_demos": args.val_demos, "val_samples": args.val_samples,
-        "machine": provenance.machine(), "date": provenance.today(), "wall_minutes": round((time.time() - started) / 60, 1),
+        "benchmark": "time_to_quality",
+        "cores_per_run": 1 if len(args.run) <= len(cores) else len(cores) / len(args.run), "minutes": args.minutes, "preset": args.preset, "train": args.train, "val": args.val,
+        "val_demos": args.val_demos, "val_samples": args.val_samples, "machine": provenance.machine(),
+        "date": provenance.today(), "wall_minutes": round((time.time() - started) / 60, 1),
         "runs": {name: summary(args.out / name, options, commands[name]) for name, options in args.run},
     }
     text = json.dumps(result, indent=1)
