@@ -122,7 +122,8 @@ def main() -> int:
         return 1
     result = {
         "benchmark": "time_to_quality",
-        "cores_per_run": 1 if len(args.run) <= len(cores) else len(cores) / len(args.run), "minutes": args.minutes, "preset": args.preset, "train": args.train, "val": args.val,
+        "cores_per_run": 1 if len(args.run) <= len(cores) else len(cores) / len(args.run),
+        "minutes": args.minutes, "preset": args.preset, "train": args.train, "val": args.val,
         "val_demos": args.val_demos, "val_samples": args.val_samples, "machine": provenance.machine(),
         "date": provenance.today(), "wall_minutes": round((time.time() - started) / 60, 1),
         "runs": {name: summary(args.out / name, options, commands[name]) for name, options in args.run},

@@ -5,7 +5,8 @@
 
 --log is a run's log.jsonl, or a kept JSON `{"records": [...]}` of its plan, validation and last lines (left out for a
 run whose log was not kept: the card then says so); --eval a kept `tax3d eval` summary. The card says what the
-checkpoint is for, how it was made and how well it does, beside the paper's success and RMSE for the same task and variant (docs/results/paper.toml).
+checkpoint is for, how it was made and how well it does, beside the paper's success and RMSE for the same task and
+variant (docs/results/paper.toml).
 """
 
 from __future__ import annotations
