@@ -10,7 +10,7 @@ import torch
 
 from tax3d.cli import main
 from tax3d.data.format import save_demo
-from tax3d.metrics import MeanGoalBaseline, coverage_rmse, min_of_samples_rmse, precision_rmse, rmse
+from tax3d.metrics import MeanGoalBaseline, coverage_rmse, medoid, min_of_samples_rmse, precision_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
 
 from tests.conftest import N, scene, synthetic_demo, tiny_model
@@ -161,6 +161,8 @@ def test_predict_command(tmp_path, capsys, checkpoint):
     with np.load(tmp_path / "p.npz") as f:
         assert f["goals"].shape == (3, 3, N, 3) and f["rmse"].shape == (3, 3)
         assert np.isclose(f["rmse"].min(1).mean(), summary["rmse_min_of_samples"])
+        medoids = [medoid(g) for g in f["goals"]]
+        assert np.isclose(np.mean([e[i] for e, i in zip(f["rmse"], medoids)]), summary["rmse_medoid"])
 
 
 def test_predict_compares_the_samplers_on_the_same_demos_and_seed(tmp_path, capsys, checkpoint):
@@ -176,6 +178,7 @@ def test_predict_compares_the_samplers_on_the_same_demos_and_seed(tmp_path, caps
         alone = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
         assert np.isclose(alone["rmse_mean"], compared[name]["rmse_mean"])
         assert np.isclose(alone["rmse_min_of_samples"], compared[name]["rmse_min_of_samples"])
+        assert np.isclose(alone["rmse_medoid"], compared[name]["rmse_medoid"])
 
 
 def test_predict_command_bad_input(tmp_path, capsys, checkpoint):

@@ -4,8 +4,8 @@
 
 The npz holds `goals` (D, K, N, 3) world-frame predictions (an object array of (K, N_i, 3) when the demos' point
 counts differ), `files` (D,) and, with ground truth, `rmse` (D, K). The printed RMSE is the mean over demos of the
-min over samples (docs/reference.md, Evaluation), and the mean over all samples; `--summary FILE` keeps it as JSON with
-the command, machine and date. `--compare-samplers` scores the same demos, seed and noise with each of
+min over samples (docs/reference.md, Evaluation), the mean over all samples and that of each demo's medoid sample
+(the one `tax3d eval --select medoid` executes); `--summary FILE` keeps it as JSON with the command, machine and date. `--compare-samplers` scores the same demos, seed and noise with each of
 COMPARED_SAMPLERS as well (how much an under-trained checkpoint depends on its sampler).
 """
 
@@ -27,7 +27,7 @@ from tax3d.atomic import atomic_write, write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
-from tax3d.metrics import MeanGoalBaseline, rmse
+from tax3d.metrics import MeanGoalBaseline, medoid, rmse
 from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
 from tax3d import options
@@ -96,7 +96,7 @@ def run(args: Args) -> int:
 
     summary = {"demos": len(demos), "samples": args.samples, "steps": args.steps or model.config.diffusion.sample_steps,
                "rmse_min_of_samples": float(errors.min(1).mean()), "rmse_mean": float(errors.mean()),
-               "seconds": round(seconds, 2)}
+               "rmse_medoid": medoid_rmse(goals, errors), "seconds": round(seconds, 2)}
     if args.compare_samplers and model.spec.diffusion:
         summary["samplers"] = {}
         for steps, sampler in COMPARED_SAMPLERS:
@@ -105,7 +105,8 @@ def run(args: Args) -> int:
                                             batch_scenes=args.batch_scenes, progress=True)
             found = np.stack([rmse(g, d["action_pc"] + d["flow"]) for g, d in zip(compared, demos)])
             summary["samplers"][f"{sampler}_{steps}"] = {"rmse_min_of_samples": float(found.min(1).mean()),
-                                                         "rmse_mean": float(found.mean())}
+                                                         "rmse_mean": float(found.mean()),
+                                                         "rmse_medoid": medoid_rmse(compared, found)}
     if args.baseline:
         baseline = MeanGoalBaseline.fit([load_demo(p) for p in demo_files(args.baseline)])
         summary["rmse_mean_goal_baseline"] = float(np.mean(
@@ -121,6 +122,11 @@ def run(args: Args) -> int:
         write_text(args.summary, json.dumps(kept, indent=1) + "\n")
     print(json.dumps(summary))
     return 0
+
+
+def medoid_rmse(goals: list[np.ndarray], errors: np.ndarray) -> float:
+    """Mean over demos of the RMSE of each demo's medoid sample (the goal `tax3d eval --select medoid` executes)."""
+    return float(np.mean([e[medoid(g)] for g, e in zip(goals, errors)]))
 
 
 def command_line(args: Args) -> str:
