@@ -5,8 +5,9 @@
 The npz holds `goals` (D, K, N, 3) world-frame predictions (an object array of (K, N_i, 3) when the demos' point
 counts differ), `files` (D,) and, with ground truth, `rmse` (D, K). The printed RMSE is the mean over demos of the
 min over samples (docs/reference.md, Evaluation), the mean over all samples and that of each demo's medoid sample
-(the one `tax3d eval --select medoid` executes); `--summary FILE` keeps it as JSON with the command, machine and date. `--compare-samplers` scores the same demos, seed and noise with each of
-COMPARED_SAMPLERS as well (how much an under-trained checkpoint depends on its sampler).
+(the one `tax3d eval --select medoid` executes); `--summary FILE` keeps it as JSON with the command, machine and
+date. `--compare-samplers` scores the same demos, seed and noise with each of COMPARED_SAMPLERS as well (how much an
+under-trained checkpoint depends on its sampler).
 """
 
 from __future__ import annotations
