@@ -42,11 +42,19 @@ def train_command(args, name: str, options: str) -> list[str]:
 
 
 def summary(out: Path, options: str, command: list[str]) -> dict:
-    """One run's curve from its log.jsonl: every validation, and the plan it made."""
+    """One run's curve from its log.jsonl: every validation, with the mean of the training loss's mean term (`mse`)
+    over the steps since the one before (train_mse: a falling train_mse beside a flat val_rmse is overfitting), and
+    the plan it made."""
     records = read_log(out / "log.jsonl")
     plan = next((r["plan"] for r in records if "plan" in r), None)
-    curve = [{"minutes": round(r["seconds"] / 60, 2), "step": r["step"], "val_rmse": r["val_rmse"],
-              "val_rmse_mean": r["val_rmse_mean"]} for r in records if "val_rmse" in r]
+    curve, since = [], 0
+    for r in records:
+        if "val_rmse" in r:
+            losses = [x["mse"] for x in records if since < x["step"] <= r["step"] and "mse" in x]
+            curve.append({"minutes": round(r["seconds"] / 60, 2), "step": r["step"], "val_rmse": r["val_rmse"],
+                          "val_rmse_mean": r["val_rmse_mean"],
+                          "train_mse": sum(losses) / len(losses) if losses else None})
+            since = r["step"]
     last = records[-1]
     config = json.loads((out / "config.json").read_text())
     return {"options": options, "command": " ".join(shlex.quote(c) for c in command), "config": config, "plan": plan,

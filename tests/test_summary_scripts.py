@@ -1,5 +1,5 @@
 """The scripts that keep the summaries `tax3d results` reads: keep_summary.py, mode_spread.py, val_curve.py,
-success_by_rmse.py."""
+success_by_rmse.py, and the curves that benchmarks/time_to_quality.py keeps."""
 
 from __future__ import annotations
 
@@ -107,3 +107,20 @@ def test_success_by_rmse_bins_the_executed_goals(tmp_path):
                          capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--edges 1,0.5" in bad.stderr
     assert not (tmp_path / "x.json").exists()
+
+
+def test_time_to_quality_collect_keeps_the_training_loss_between_validations(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.json").write_text(json.dumps({"data": {"train": ["t"], "val": ["v"]},
+                                                 "train": {"val_demos": 20, "val_samples": 2}}))
+    records = [{"step": 1, "loss": 9.0, "mse": 8.0, "seconds": 1.0, "plan": {"minutes": 2.0}},
+               {"step": 2, "loss": 5.0, "mse": 4.0, "seconds": 30.0, "val_rmse": 1.5, "val_rmse_mean": 1.7},
+               {"step": 3, "loss": 2.0, "mse": 1.0, "seconds": 60.0},
+               {"step": 4, "loss": 4.0, "mse": 3.0, "seconds": 120.0, "val_rmse": 1.2, "val_rmse_mean": 1.3}]
+    (run / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
+    done = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "time_to_quality.py"), "--collect", "x", str(run),
+                           "tax3d train ...", "--out", str(tmp_path / "out")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    curve = json.loads((tmp_path / "out" / "time_to_quality.json").read_text())["runs"]["x"]["curve"]
+    assert [(p["step"], p["minutes"], p["train_mse"]) for p in curve] == [(2, 0.5, 6.0), (4, 2.0, 2.0)]
