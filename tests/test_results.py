@@ -184,9 +184,9 @@ PROV = {"machine": "fixture machine", "date": "2026-02-03"}
 def study(curves: dict[str, list[tuple[float, float]]]) -> dict:
     return {**PROV, "val": ["v"], "val_demos": 20, "val_samples": 2, "runs": {
         name: {"options": f"--opt {name}", "command": f"tax3d train --out runs/{name}", "steps_per_minute": 100.0,
-               "plan": {"step_seconds": 0.5}, "steps": int(curve[-1][0] * 100),
-               "curve": [{"minutes": m, "step": int(m * 100), "val_rmse": r, "val_rmse_mean": r + 0.25}
-                         for m, r in curve]}
+               "plan": {"step_seconds": 0.5}, "steps": int(curve[-1][0] * 100), "config": {"model": {"hidden_size": 8}},
+               "curve": [{"minutes": m, "step": int(m * 100), "val_rmse": r, "val_rmse_mean": r + 0.25,
+                          "train_mse": r / 10} for m, r in curve]}
         for name, curve in curves.items()}}
 
 
@@ -230,6 +230,8 @@ def measurement_json() -> dict[str, dict]:
         "training/ttq-1.json": study({"a": [(14, 2.0), (29, 1.5), (61, 0.9)], "b": [(20, 1.2), (65, 0.7)]}),
         "training/ttq-5.json": {**study({"v-loss-30min": [(8, 1.9), (15, 1.6), (22, 1.5), (30, 1.25)]}),
                                 "minutes": 30.0},
+        "training/ttq-6.json": {**study({name: [(m * k, 1.5 - m / 10) for m in range(1, 7)]
+                                         for name, k in (("v-95min", 16), ("v-128x3-95min", 18))}), "minutes": 95.0},
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         "precision_benchmark.json": {**PROV, "command": "python benchmarks/model.py --parts precision", "precision": {
             "cpu": {"speedup_bf16": 0.5}, "paper": {"speedup_bf16": 1.5}}},
@@ -311,7 +313,8 @@ def test_check_names_a_measurement_page_whose_json_changed(measured, capsys, rel
 
 @pytest.mark.parametrize("rel", ["sim_benchmark_hangbag.json", "official_training.json", "model_benchmark.json",
                                  "large_clouds_benchmark.json",
-                                 "training/unimodal-floor-20.json", "training/ttq-5.json"])
+                                 "training/unimodal-floor-20.json", "training/ttq-5.json",
+                                 "training/ttq-6.json"])
 def test_missing_measurement_json_is_a_one_line_error(measured, capsys, rel):
     (measured / rel).unlink()
     err = one_line_error(capsys, ["results", "--root", measured])

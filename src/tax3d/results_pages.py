@@ -174,8 +174,9 @@ class TrainingPage(MeasurementPage):
         point, label = min(ends, key=lambda e: e[0]["val_rmse"])
         self.data["best"] = {**point, "label": label}
         first = self.studies[0][1]
-        self.data["study"] = {**first, "validations": len(next(iter(first["runs"].values()))["curve"]),
-                              "val_split": " ".join(first["val"])}
+        counts = sorted({len(r["curve"]) for _, study, _ in self.studies for r in study["runs"].values()})
+        self.data["study"] = {**first, "val_split": " ".join(first["val"]), "validations": str(counts[0]) if
+                              len(counts) == 1 else f"{counts[0]} to {counts[-1]}"}
 
     @staticmethod
     def at_minute(curve: list[dict], mark: float) -> dict | None:
