@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
               f"`tax3d eval` on demo folders", file=sys.stderr)
         return 2
     kept = {"command": "python scripts/success_by_rmse.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-            "source": summary.get("command"), "checkpoint": summary.get("checkpoint"), "splits": splits,
+            "source": summary.get("command"), "checkpoint": summary.get("checkpoint"), "pooled_splits": splits,
             "samples": summary.get("args", {}).get("samples"), "select": summary.get("args", {}).get("select"),
             "episodes": len(chosen), "success_rate": sum(e["success"] for e in chosen) / len(chosen),
             "bins": bins(chosen, edges), "machine": summary.get("machine"), "date": provenance.today()}
