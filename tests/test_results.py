@@ -233,6 +233,10 @@ def measurement_json() -> dict[str, dict]:
         "training/ttq-6.json": {**study({name: [(m * k, 1.5 - m / 10) for m in range(1, 7)]
                                          for name, k in (("v-95min", 16), ("v-128x3-95min", 18))}), "minutes": 95.0},
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
+        **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
+            **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
+            "samplers": {name: {"rmse_mean": 0.5} for name in ("ddpm_10", "ddim_10", "ddpm_100")}}
+           for split in ("unseen", "ood")},
         "precision_benchmark.json": {**PROV, "command": "python benchmarks/model.py --parts precision", "precision": {
             "cpu": {"speedup_bf16": 0.5}, "paper": {"speedup_bf16": 1.5}}},
         "fps_benchmark_fpsample.json": {**PROV, "command": "python benchmarks/fps.py", "machine": "fixture machine",
