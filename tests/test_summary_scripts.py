@@ -13,6 +13,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def refused(script: list[str], out: Path, says: str, *options: str) -> None:
+    """The script exits 2 with a one-line error that says `says`, and writes nothing to `out`."""
+    done = subprocess.run([sys.executable, *script, str(out), *options], capture_output=True, text=True)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and says in done.stderr, done.stderr
+    assert not out.exists()
+
+
 def summary(success: float, rmse: float, coverage: float, precision: float) -> dict:
     split = {"episodes": 20, "success_rate": success, "rmse": rmse, "coverage_rmse": coverage,
              "precision_rmse": precision, "predict_seconds": 0.5, "sim_seconds": 4.0, "failed_runs": 0}
@@ -81,10 +88,7 @@ def test_val_curve_kept(tmp_path):
     assert [p["step"] for p in curve["points"]] == [500, 1000] and curve["points"][1]["minutes"] == 10.0
     assert curve["val_demos"] == 10 and curve["val"] == ["data/u/unseen"]
     (run / "log.jsonl").write_text(json.dumps(log[0]) + "\n")
-    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "val_curve.py"), str(run), str(tmp_path / "c2.json")],
-                          capture_output=True, text=True)
-    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "no validated step" in done.stderr
-    assert not (tmp_path / "c2.json").exists()
+    refused([str(ROOT / "scripts" / "val_curve.py"), str(run)], tmp_path / "c2.json", "no validated step")
 
 
 def test_success_by_rmse_bins_the_executed_goals(tmp_path):
@@ -103,10 +107,7 @@ def test_success_by_rmse_bins_the_executed_goals(tmp_path):
     assert data["episodes"] == 4 and data["success_rate"] == 0.5  # train left out
     assert [(b["low"], b["high"], b["episodes"], b["success_rate"]) for b in data["bins"]] == [
         (0.0, 0.5, 2, 0.5), (0.5, 1.0, 1, 1.0), (1.0, None, 1, 0.0)]
-    bad = subprocess.run([sys.executable, script, str(run), str(tmp_path / "x.json"), "--edges", "1,0.5"],
-                         capture_output=True, text=True)
-    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--edges 1,0.5" in bad.stderr
-    assert not (tmp_path / "x.json").exists()
+    refused([script, str(run)], tmp_path / "x.json", "--edges 1,0.5", "--edges", "1,0.5")
 
 
 def test_time_to_quality_collect_keeps_the_training_loss_between_validations(tmp_path):
