@@ -47,14 +47,15 @@ def summary(out: Path, options: str, command: list[str]) -> dict:
     the plan it made."""
     records = read_log(out / "log.jsonl")
     plan = next((r["plan"] for r in records if "plan" in r), None)
-    curve, since = [], 0
+    curve, losses = [], []
     for r in records:
+        if "mse" in r:
+            losses.append(r["mse"])
         if "val_rmse" in r:
-            losses = [x["mse"] for x in records if since < x["step"] <= r["step"] and "mse" in x]
             curve.append({"minutes": round(r["seconds"] / 60, 2), "step": r["step"], "val_rmse": r["val_rmse"],
                           "val_rmse_mean": r["val_rmse_mean"],
                           "train_mse": sum(losses) / len(losses) if losses else None})
-            since = r["step"]
+            losses = []
     last = records[-1]
     config = json.loads((out / "config.json").read_text())
     return {"options": options, "command": " ".join(shlex.quote(c) for c in command), "config": config, "plan": plan,
