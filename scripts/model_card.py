@@ -7,6 +7,11 @@
 run whose log was not kept: the card then says so); --eval a kept `tax3d eval` summary. The card says what the
 checkpoint is for, how it was made and how well it does, beside the paper's success and RMSE for the same task and
 variant (docs/results/paper.toml).
+
+    python scripts/model_card.py checkpoints/tax3d-cd-official-simple --official docs/results/official_val.json ...
+
+--official marks a checkpoint trained on the authors' demonstrations and adds the RMSE on their `val` split that
+scripts/official_report.py measured.
 """
 
 from __future__ import annotations
@@ -61,17 +66,36 @@ def run_lines(config: dict, records: list[dict], plan: dict | None) -> list[str]
             f"- wall time: {last['seconds'] / 60:.0f} minutes on {where}"]
 
 
-def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str, train_command: str) -> str:
+def official_lines(report: dict, paper: dict | None) -> list[str]:
+    """The RMSE on the authors' `val` split, beside the paper's `unseen` RMSE and the mean-goal floor."""
+    lines = ["", f"On the authors' `val` split ({report['demos']} demos, {report['samples']} samples each, "
+             f"{report['date']}, {report['machine']}), the RMSE of the predicted goal:", "",
+             "| predictor | RMSE | min over the samples |", "| --- | --- | --- |"]
+    for name, result in report["samplers"].items():
+        steps, sampler = name.split("_")[1], name.split("_")[0].upper()
+        lines.append(f"| this checkpoint, {steps}-step {sampler} | {result['rmse']:.3f} | "
+                     f"{result['rmse_min_of_samples']:.3f} |")
+    if paper and "rmse" in paper:
+        lines.append(f"| the paper (`unseen`) | {paper['rmse'][SPLITS.index('unseen')]:.3f} | - |")
+    lines += [f"| mean goal of `train` (the floor) | {report['mean_goal_baseline_rmse']:.3f} | - |", "",
+              f"Command: `{report['command']}`"]
+    return lines
+
+
+def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str, train_command: str,
+         official: dict | None = None) -> str:
     config = json.loads((checkpoint / "config.json").read_text())
     plan = next((r["plan"] for r in records if "plan" in r), None)
     vals = [r for r in records if "val_rmse" in r]
     best = min(vals, key=lambda r: r["val_rmse"]) if vals else None
     task, variant = config["data"]["task"], config["model"]["variant"]
+    paper = paper_row(task, variant)
+    source = ("the authors' demonstrations" if official else "this project's own demonstrations")
     lines = [
         f"# TAX3D-{variant.upper()} for {task}",
         "",
         f"A TAX3D-{variant.upper()} goal predictor (a diffusion transformer over per-point cross-displacements) for "
-        f"`{task}`, trained on this project's own demonstrations with the `cpu` recipe of "
+        f"`{task}`, trained on {source} with the `cpu` recipe of "
         f"[docs/training.md](../../docs/training.md).",
         "",
         "```python",
@@ -85,9 +109,10 @@ def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str
         f"`tax3d eval` on {summary['task']}, {summary['date']}, {summary['machine']}; the paper's figures from "
         f"its appendix D (docs/results/paper.toml):",
         "",
-        *success_table(summary["splits"], paper_row(task, variant)),
+        *success_table(summary["splits"], paper),
         "",
         f"Command: `{summary['command']}`",
+        *(official_lines(official, paper) if official else []),
         "",
         "## Training",
         "",
@@ -109,12 +134,29 @@ def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str
         "",
         f"- For research on relative placement of deformables in the simulated `{task}` scenes; the inputs are "
         "world-frame point clouds of the action object and of the anchor, in the benchmark's units.",
-        "- Trained without rotation augmentation: anchor poses far outside the training range are out of its "
-        "reach, and the success above is measured in simulation only.",
+        ("- Trained with the anchor turned about z at random (rotation augmentation); the success above is "
+         "measured in simulation only." if config["data"].get("rotate") else
+         "- Trained without rotation augmentation: anchor poses far outside the training range are out of its "
+         "reach, and the success above is measured in simulation only."),
         "- A CPU-budget model: see the table against the paper's before relying on it.",
         "",
     ]
     return "\n".join(lines)
+
+
+class Refused(Exception):
+    """Bad input: one line naming the file, what was wrong and what was expected."""
+
+
+def load(path: Path, key: str, expected: str) -> dict:
+    """path's JSON object, which must hold `key` (a log.jsonl: {"records": its lines}), or Refused."""
+    try:
+        data = {"records": read_log(path)} if path.suffix == ".jsonl" else json.loads(path.read_text())
+        if key not in data:
+            raise KeyError(key)
+        return data
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise Refused(f"{path}: not readable ({type(err).__name__}); expected {expected}") from None
 
 
 def main() -> int:
@@ -124,16 +166,20 @@ def main() -> int:
     parser.add_argument("--eval", type=Path, required=True)
     parser.add_argument("--data-command", required=True)
     parser.add_argument("--train-command", required=True)
+    parser.add_argument("--official", type=Path, help="scripts/official_report.py's JSON: trained on the authors' data")
     args = parser.parse_args()
-    if args.log is None:
-        records = []
-    elif args.log.suffix == ".jsonl":
-        records = read_log(args.log)
-    else:
-        records = json.loads(args.log.read_text())["records"]
-    summary = json.loads(args.eval.read_text())["summary"]
+    try:
+        load(args.checkpoint / "config.json", "data", "a checkpoint folder whose config.json has a 'data' section")
+        summary = load(args.eval, "summary", "a kept `tax3d eval` summary")["summary"]
+        records = [] if args.log is None else load(
+            args.log, "records", "a run's log.jsonl or a kept JSON with 'records'")["records"]
+        official = None if args.official is None else load(
+            args.official, "samplers", "scripts/official_report.py's JSON")
+    except Refused as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     write_text(args.checkpoint / "README.md", card(args.checkpoint, records, summary, args.data_command,
-                                                   args.train_command))
+                                                   args.train_command, official))
     print(args.checkpoint / "README.md")
     return 0
 

@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from tests.conftest import tiny_model
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -60,3 +62,46 @@ def test_model_card_of_a_run_whose_log_was_not_kept_says_so(tmp_path):
     assert card.startswith("# TAX3D-CP for hangbag") and "| ood | 40 | 0.80 | 0.78 | 0.500 | 0.233 | - |" in card
     assert "- steps: a 4,000-step schedule, cut by a 45-minute limit on one core; the run's log was not kept" in card
     assert "wall time" not in card and "best validation" not in card
+
+
+def test_model_card_of_a_checkpoint_trained_on_the_authors_data(tmp_path):
+    checkpoint = tmp_path / "tax3d-cd-official"
+    model = tiny_model()
+    model.config.data.task, model.config.data.rotate = "hangproccloth-simple", True
+    model.save_pretrained(checkpoint)
+    evaluation, report = tmp_path / "eval.json", tmp_path / "official.json"
+    evaluation.write_text(json.dumps({"summary": {"task": "hangproccloth-simple", "date": "2026-01-01", "machine": "m",
+                                                  "command": "tax3d eval ...", "splits": {
+                                                      "unseen": {"episodes": 40, "success_rate": 1.0, "rmse": 0.4}}}}))
+    report.write_text(json.dumps({"command": "python scripts/official_report.py", "date": "2026-01-02",
+                                  "machine": "n", "demos": 40, "samples": 5, "mean_goal_baseline_rmse": 1.1,
+                                  "samplers": {"ddpm_100": {"rmse": 0.21, "rmse_min_of_samples": 0.19}}}))
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "model_card.py"), str(checkpoint), "--eval",
+                           str(evaluation), "--official", str(report), "--data-command", "D", "--train-command", "T"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    card = (checkpoint / "README.md").read_text()
+    assert "trained on the authors' demonstrations" in card and "own demonstrations" not in card
+    # beside the paper's TAX3D-CD on simple, unseen (appendix D.1): RMSE 0.255
+    assert "| this checkpoint, 100-step DDPM | 0.210 | 0.190 |" in card and "| the paper (`unseen`) | 0.255 | - |" in card
+    assert "| mean goal of `train` (the floor) | 1.100 | - |" in card
+    assert "rotation augmentation" in card and "without rotation" not in card
+
+
+@pytest.mark.parametrize("broken,says", [("eval", "a kept `tax3d eval` summary"),
+                                         ("official", "scripts/official_report.py's JSON"),
+                                         ("checkpoint", "config.json has a 'data' section")])
+def test_model_card_bad_input_is_one_line_naming_the_file(tmp_path, broken, says):
+    checkpoint = tmp_path / "ckpt"
+    tiny_model().save_pretrained(checkpoint)
+    files = {"eval": tmp_path / "eval.json", "official": tmp_path / "official.json"}
+    files["eval"].write_text(json.dumps({"summary": {}}))
+    files["official"].write_text(json.dumps({"samplers": {}}))
+    target = checkpoint / "config.json" if broken == "checkpoint" else files[broken]
+    target.write_text("{not json")
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "model_card.py"), str(checkpoint), "--eval",
+                           str(files["eval"]), "--official", str(files["official"]), "--data-command", "D",
+                           "--train-command", "T"], capture_output=True, text=True)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+    assert done.stderr.startswith(f"error: {target}: not readable") and says in done.stderr
+    assert not (checkpoint / "README.md").exists()

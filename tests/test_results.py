@@ -225,6 +225,7 @@ def measurement_json() -> dict[str, dict]:
             "action_points": 20000, "network_points": 256, "latency_s": 0.25, "demos": 8, "samples_per_demo": 2,
             "rmse_sampled": 0.25, "rmse_every_point": 0.2, "rmse_ratio_sampled_vs_every_point": 1.25}},
         "official_training.json": {"command": "tax3d train --out runs/o", "log": "runs/o/log.jsonl",
+                                   "resumed_with": "--train.steps 800 --train.time-limit 50",
                                    "first_plan_steps": 900, "stopped_at_step": 300, "training_minutes": 45,
                                    "best_step": 600, "machine": "fixture machine"},
         "training/ttq-1.json": study({"a": [(14, 2.0), (29, 1.5), (61, 0.9)], "b": [(20, 1.2), (65, 0.7)]}),
