@@ -233,6 +233,8 @@ def measurement_json() -> dict[str, dict]:
                                 "minutes": 30.0},
         "training/ttq-6.json": {**study({name: [(m * k, 1.5 - m / 10) for m in range(1, 7)]
                                          for name, k in (("v-95min", 16), ("v-128x3-95min", 18))}), "minutes": 95.0},
+        "training/ttq-7.json": {**study({"v-rotate-95min": [(m * 16, 1.4 - m / 10) for m in range(1, 7)]}),
+                                "minutes": 95.0},
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
