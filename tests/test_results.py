@@ -181,6 +181,13 @@ def test_committed_pages_are_what_tax3d_results_builds(capsys):
 PROV = {"machine": "fixture machine", "date": "2026-02-03"}
 
 
+def regularised() -> dict:
+    out = {**study({name: [(m * 8, 1.2 - m / 10) for m in range(1, 5)]
+                    for name in ("v-wd01-30min", "v-fresh-subsets-30min")}), "minutes": 30.0}
+    out["runs"]["v-wd01-30min"]["config"]["train"] = {"weight_decay": 0.1}
+    return out
+
+
 def study(curves: dict[str, list[tuple[float, float]]]) -> dict:
     return {**PROV, "val": ["v"], "val_demos": 20, "val_samples": 2, "runs": {
         name: {"options": f"--opt {name}", "command": f"tax3d train --out runs/{name}", "steps_per_minute": 100.0,
@@ -235,6 +242,7 @@ def measurement_json() -> dict[str, dict]:
                                          for name, k in (("v-95min", 16), ("v-128x3-95min", 18))}), "minutes": 95.0},
         "training/ttq-7.json": {**study({"v-rotate-95min": [(m * 16, 1.4 - m / 10) for m in range(1, 7)]}),
                                 "minutes": 95.0},
+        "training/ttq-8.json": regularised(),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
