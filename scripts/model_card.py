@@ -82,9 +82,8 @@ def official_lines(report: dict, paper: dict | None) -> list[str]:
     return lines
 
 
-def card(checkpoint: Path, records: list[dict], summary: dict, data_command: str, train_command: str,
+def card(checkpoint: Path, config: dict, records: list[dict], summary: dict, data_command: str, train_command: str,
          official: dict | None = None) -> str:
-    config = json.loads((checkpoint / "config.json").read_text())
     plan = next((r["plan"] for r in records if "plan" in r), None)
     vals = [r for r in records if "val_rmse" in r]
     best = min(vals, key=lambda r: r["val_rmse"]) if vals else None
@@ -169,7 +168,8 @@ def main() -> int:
     parser.add_argument("--official", type=Path, help="scripts/official_report.py's JSON: trained on the authors' data")
     args = parser.parse_args()
     try:
-        load(args.checkpoint / "config.json", "data", "a checkpoint folder whose config.json has a 'data' section")
+        config = load(args.checkpoint / "config.json", "data",
+                      "a checkpoint folder whose config.json has a 'data' section")
         summary = load(args.eval, "summary", "a kept `tax3d eval` summary")["summary"]
         records = [] if args.log is None else load(
             args.log, "records", "a run's log.jsonl or a kept JSON with 'records'")["records"]
@@ -178,7 +178,7 @@ def main() -> int:
     except Refused as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    write_text(args.checkpoint / "README.md", card(args.checkpoint, records, summary, args.data_command,
+    write_text(args.checkpoint / "README.md", card(args.checkpoint, config, records, summary, args.data_command,
                                                    args.train_command, official))
     print(args.checkpoint / "README.md")
     return 0

@@ -21,10 +21,13 @@ TRAIN_FIELDS = ("lr", "weight_decay", "warmup_steps", "batch_size", "grad_clip",
                 "time_limit", "precision")
 
 
+TRAIN_COMMAND = re.compile(r"\S*tax3d(\.cli)? train ")
+
+
 def kept_commands() -> list:
     """A case for every `tax3d train` command given beside a kept configuration: a result row's `made` with its
-    `shipped` checkpoint or `config` JSON, a page source's `config` with the command of its summary (and the options it was resumed with), and the training
-    command of each model card."""
+    `shipped` checkpoint or `config` JSON, a page source's `config` with the command of its summary (and the options
+    it was resumed with), and the training command of each model card."""
     results = ROOT / "docs" / "results"
     found = []
     for page in sorted((results / "pages").glob("*.toml")):
@@ -33,12 +36,12 @@ def kept_commands() -> list:
             if source.get("config"):
                 run = json.loads((results / source["summary"]).read_text())
                 command = " ".join([run.get("command", ""), run.get("resumed_with", "")])
-                if re.match(r"\S*tax3d(\.cli)? train ", command):
+                if TRAIN_COMMAND.match(command):
                     found.append(pytest.param(results / source["config"], command, id=f"{page.stem}:{source['id']}"))
         for row in declared.get("row", []):
             kept = (ROOT / row["shipped"] / "config.json") if row.get("shipped") else (
                 results / row["config"] if row.get("config") else None)
-            if kept is not None and re.match(r"\S*tax3d(\.cli)? train ", row.get("made", "")):
+            if kept is not None and TRAIN_COMMAND.match(row.get("made", "")):
                 found.append(pytest.param(kept, row["made"], id=f"{page.stem}:{row['id']}"))
     for card in sorted((ROOT / "checkpoints").glob("*/README.md")):
         for line in card.read_text().splitlines():
