@@ -8,13 +8,24 @@ import re
 from tax3d import provenance
 
 
-def test_machine_line_names_the_architecture_cores_and_python_then_the_extras():
-    line = provenance.machine()
-    parts = line.split(", ")
+def test_machine_line_names_the_architecture_processor_cores_and_python_then_the_extras():
+    parts = provenance.machine().split(", ")
     assert parts[0] == platform.machine() and parts[0]
+    cpu = provenance.processor()
+    if cpu:
+        assert parts[1] == cpu
+        parts = [parts[0], *parts[2:]]
     assert re.fullmatch(r"\d+ cores", parts[1]) and int(parts[1].split()[0]) == os.cpu_count()
     assert re.fullmatch(r"Python 3\.\d+\.\d+", parts[2]) and len(parts) == 3
-    assert provenance.machine("torch 2.0", "a GPU").split(", ") == parts + ["torch 2.0", "a GPU"]
+    assert provenance.machine("torch 2.0", "a GPU").endswith(", torch 2.0, a GPU")
+
+
+def test_processor_reads_the_model_name_and_avx512():
+    first = "processor\t: 0\nmodel name\t: Some CPU 9000\nflags\t\t: fpu sse avx2 {}\n\n"
+    second = "processor\t: 1\nmodel name\t: Some CPU 9000\nflags\t\t: fpu\n"
+    assert provenance.processor(first.format("") + second) == "Some CPU 9000"
+    assert provenance.processor(first.format("avx512f avx512_bf16") + second) == "Some CPU 9000 with AVX-512"
+    assert provenance.processor("processor\t: 0\nflags\t: avx512f\n") is None
 
 
 def test_today_is_iso():

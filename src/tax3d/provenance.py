@@ -5,11 +5,34 @@ from __future__ import annotations
 import datetime
 import os
 import platform
+from pathlib import Path
+
+
+def processor(cpuinfo: str | None = None) -> str | None:
+    """The CPU's model name from /proc/cpuinfo, with "AVX-512" when its flags list it (torch's CPU kernels are about
+    twice as fast with it), or None where there is no such file (not Linux)."""
+    if cpuinfo is None:
+        path = Path("/proc/cpuinfo")
+        if not path.is_file():
+            return None
+        cpuinfo = path.read_text(errors="replace")
+    fields = {}
+    for line in cpuinfo.splitlines():
+        key, sep, value = line.partition(":")
+        if sep:
+            fields.setdefault(key.strip(), value.strip())
+    name = fields.get("model name")
+    if not name:
+        return None
+    return f"{name} with AVX-512" if "avx512f" in fields.get("flags", "").split() else name
 
 
 def machine(*extra: str) -> str:
-    """"x86_64, 2 cores, Python 3.11.7", then any extra parts (a torch version, a GPU's name)."""
-    return ", ".join([platform.machine(), f"{os.cpu_count()} cores", f"Python {platform.python_version()}", *extra])
+    """"x86_64, AMD EPYC, 2 cores, Python 3.11.7" (the processor where it is known), then any extra parts
+    (a torch version, a GPU's name)."""
+    cpu = processor()
+    return ", ".join([platform.machine(), *([cpu] if cpu else []), f"{os.cpu_count()} cores",
+                      f"Python {platform.python_version()}", *extra])
 
 
 def today() -> str:
