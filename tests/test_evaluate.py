@@ -141,6 +141,21 @@ def test_medoid_is_the_sample_nearest_the_others():
     assert medoid(samples[:1]) == 0
 
 
+def test_densest_is_a_sample_of_the_closest_pair_not_the_one_between_two_crowds():
+    from tax3d.metrics import densest, medoid
+
+    rng = np.random.default_rng(0)
+    centre = rng.normal(size=(20, 3))
+    # two crowds (holes) 4 apart and one sample between them: the medoid is the one between, densest is not
+    samples = np.stack([centre + [2.0, 0, 0], centre, centre + [-1.8, 0, 0], centre + [2.1, 0, 0],
+                        centre + [-2.0, 0, 0]])
+    assert medoid(samples) == 1
+    assert densest(samples) == 0
+    assert densest(samples[[4, 2, 1, 0, 3]]) == 3
+    assert densest(samples[:1]) == 0
+    assert densest(torch.as_tensor(samples)) == 0
+
+
 def test_select_medoid_reaches_the_jobs_the_gripper_targets_and_the_results(checkpoint):
     from tax3d.evaluate import plan_jobs
     from tax3d.policy import GoalPolicy
@@ -164,6 +179,8 @@ def test_select_medoid_reaches_the_jobs_the_gripper_targets_and_the_results(chec
     assert first.executed == 0 and np.allclose(first.targets(state.cloth), state.cloth[[0, 2]] + 5.0)
     chosen = GoalPolicy(Spread(), num_samples=5, select="medoid")(Env(), state)
     assert chosen.executed == 1 and np.allclose(chosen.targets(state.cloth), state.cloth[[0, 2]] + 1.0)
+    closest = GoalPolicy(Spread(), num_samples=5, select="densest")(Env(), state)  # 1.0 and 0.0 are the closest pair
+    assert closest.executed == 1 and np.allclose(closest.targets(state.cloth), state.cloth[[0, 2]] + 1.0)
 
 
 def test_sampler_reaches_the_jobs_and_the_model(checkpoint):

@@ -43,9 +43,9 @@ class Args:
     """episodes per split (default: every demo of the split's folder, or the paper's size)"""
     samples: Annotated[int, Positive] = 1
     """goal samples per episode (the policy executes one: --select); RMSE is their mean, coverage their min"""
-    select: Literal["first", "medoid"] = "first"
-    """which goal sample the policy executes: the first (the paper's policy) or the medoid, the one with the least
-    summed RMSE to the other samples"""
+    select: Literal["first", "medoid", "densest"] = "first"
+    """which goal sample the policy executes: the first (the paper's policy), the medoid (the least summed RMSE to
+    the other samples) or the densest (the first of the closest pair: a sample from a crowd, not between two)"""
     steps: Annotated[int | None, Positive] = None
     """denoising steps (default: the checkpoint's)"""
     sampler: Literal["ddpm", "ddim"] | None = None

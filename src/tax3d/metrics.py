@@ -48,6 +48,21 @@ def medoid(samples) -> int:
     return int(rmse(samples[:, None], samples[None]).sum(1).argmin())
 
 
+def densest(samples) -> int:
+    """Index of the goal sample (K, N, 3) nearest another sample: the first of the closest pair. Where samples crowd
+    about two goals (two holes) and some fall between them, it picks one from a crowd, where the medoid may pick one
+    from between."""
+    if len(samples) < 2:
+        return 0
+    distances = np.array(rmse(samples[:, None], samples[None]), dtype=np.float64)
+    np.fill_diagonal(distances, np.inf)
+    return int(distances.min(1).argmin())
+
+
+SELECTIONS = {"first": lambda samples: 0, "medoid": medoid, "densest": densest}
+"""which of a prediction's goal samples the policy executes (`tax3d eval --select`); "first" is the paper's policy"""
+
+
 class MeanGoalBaseline:
     """Predicts the training demos' mean goal in the anchor frame, placed at the new anchor's mean.
 

@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from tax3d.metrics import medoid
+from tax3d.metrics import SELECTIONS
 
 
 class GoalPolicy:
@@ -15,7 +15,8 @@ class GoalPolicy:
     With replan_every = K > 0 it predicts again every K environment steps from the current cloth (closed loop,
     the paper's stated limitation; reported separately). `offset` is added to the predicted positions (HangBag:
     `tax3d.sim.bag.POLICY_OFFSET`). With several samples it follows the first (select "first", the paper's policy)
-    or the medoid, the sample nearest the others (select "medoid"). Called as make_policy(env, state) by run_episode.
+    or another of `tax3d.metrics.SELECTIONS` (select "medoid": the sample nearest the others; "densest": one of the
+    closest pair). Called as make_policy(env, state) by run_episode.
     """
 
     def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
@@ -48,7 +49,7 @@ class GoalPolicy:
             goals = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps,
                                            sampler=self.sampler, seed=seed)
         self.predict_seconds += time.perf_counter() - start
-        chosen = medoid(goals) if self.select == "medoid" else 0
+        chosen = SELECTIONS[self.select](goals)
         if self.predictions == 0:
             self.first_prediction, self.executed = goals, chosen
         self.predictions += 1
