@@ -188,6 +188,14 @@ def regularised() -> dict:
     return out
 
 
+def points() -> dict:
+    out = {**study({name: [(m * 15, 1.3 - m / 10) for m in range(1, 7)]
+                    for name in ("v-preset-90min", "v-512pts-90min")}), "minutes": 90.0}
+    for name, count in (("v-preset-90min", 256), ("v-512pts-90min", 512)):
+        out["runs"][name]["config"]["data"] = {"num_action_points": count}
+    return out
+
+
 def study(curves: dict[str, list[tuple[float, float]]]) -> dict:
     return {**PROV, "val": ["v"], "val_demos": 20, "val_samples": 2, "runs": {
         name: {"options": f"--opt {name}", "command": f"tax3d train --out runs/{name}", "steps_per_minute": 100.0,
@@ -243,6 +251,7 @@ def measurement_json() -> dict[str, dict]:
         "training/ttq-7.json": {**study({"v-rotate-95min": [(m * 16, 1.4 - m / 10) for m in range(1, 7)]}),
                                 "minutes": 95.0},
         "training/ttq-8.json": regularised(),
+        "training/ttq-9.json": points(),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,

@@ -216,24 +216,26 @@ class TrainingPage(MeasurementPage):
         return "\n".join(lines).rstrip()
 
     def plot(self) -> bytes:
+        import matplotlib
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
-        fig = Figure(figsize=(6.4, 3.6))
+        fig = Figure(figsize=(8.4, 3.8))
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
-        for name, study, _ in self.studies:
-            for run, result in study["runs"].items():
-                curve = result["curve"]
-                ax.plot([p["minutes"] for p in curve], [p["val_rmse"] for p in curve], marker="o",
-                        label=f"{name}: {run}")
+        runs = [(f"{name}: {run}", result["curve"]) for name, study, _ in self.studies
+                for run, result in study["runs"].items()]
+        colors = matplotlib.colormaps["tab20"].colors  # one colour a run, up to twenty runs
+        for k, (label, curve) in enumerate(runs):
+            ax.plot([p["minutes"] for p in curve], [p["val_rmse"] for p in curve], marker="o", markersize=4,
+                    color=colors[k % len(colors)], label=label)
         if "floor" in self.data:
             ax.axhline(self.data["floor"]["rmse_mean_goal_baseline"], color="grey", linestyle="--",
                        label="mean-goal floor")
         ax.set_xlabel("training minutes (one core each)")
         ax.set_ylabel(f"validation RMSE ({self.data['study']['val_demos']} unseen demos)")
         ax.set_ylim(bottom=0)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         ax.grid(alpha=0.3)
         fig.tight_layout()
         out = io.BytesIO()
