@@ -9,8 +9,8 @@ from pathlib import Path
 
 
 def processor(cpuinfo: str | None = None) -> str | None:
-    """The CPU's model name from /proc/cpuinfo, with "AVX-512" when its flags list it (torch's CPU kernels are about
-    twice as fast with it), or None where there is no such file (not Linux)."""
+    """The CPU's model name from /proc/cpuinfo, with "AVX-512" when its flags list it (the vector width torch's CPU
+    kernels can use), or None where there is no such file (not Linux)."""
     if cpuinfo is None:
         path = Path("/proc/cpuinfo")
         if not path.is_file():
