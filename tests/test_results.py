@@ -196,6 +196,11 @@ def points() -> dict:
     return out
 
 
+def demos() -> dict:
+    return {**study({name: [(m * 10, 1.5 - m / 10) for m in range(1, 7)]
+                     for name in ("v-64demos-60min", "v-256demos-60min")}), "minutes": 60.0}
+
+
 def study(curves: dict[str, list[tuple[float, float]]]) -> dict:
     return {**PROV, "val": ["v"], "val_demos": 20, "val_samples": 2, "runs": {
         name: {"options": f"--opt {name}", "command": f"tax3d train --out runs/{name}", "steps_per_minute": 100.0,
@@ -252,6 +257,7 @@ def measurement_json() -> dict[str, dict]:
                                 "minutes": 95.0},
         "training/ttq-8.json": regularised(),
         "training/ttq-9.json": points(),
+        "training/ttq-10.json": demos(),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,

@@ -13,6 +13,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
 
 from tax3d.errors import UsageError
 from tax3d.results import Page, fold
@@ -164,7 +165,9 @@ class TrainingPage(MeasurementPage):
     def __init__(self, *args):
         super().__init__(*args)
         pattern = self.spec["studies"]
-        paths = sorted(self.root.glob(pattern))
+        # in the order the studies were made: ttq-2 before ttq-10
+        paths = sorted(self.root.glob(pattern), key=lambda p: [int(t) if t.isdigit() else t
+                                                                for t in re.split(r"(\d+)", p.stem)])
         if not paths:
             raise UsageError(f"{self.file.name}: studies {pattern!r}: no file in {self.root}; expected the kept "
                              "`benchmarks/time_to_quality.py` JSON")
