@@ -118,6 +118,8 @@ def card(checkpoint: Path, config: dict, records: list[dict], summary: dict, dat
         f"- network: hidden {config['model']['hidden_size']}, depth {config['model']['depth']}; loss "
         f"`{config['diffusion'].get('loss', 'epsilon')}`, prediction `{config['diffusion']['prediction']}`, "
         f"sampler {config['diffusion']['sample_steps']}-step {config['diffusion']['sampler'].upper()}",
+        "- training demonstrations: " + ", ".join(f"`{folder}`" for folder in config["data"]["train"])
+        + " (made by the first command below)",
         *run_lines(config, records, plan),
     ]
     if best is not None:

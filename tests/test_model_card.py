@@ -19,6 +19,7 @@ def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path):
     checkpoint = tmp_path / "tax3d-cd-x"
     model = tiny_model()
     model.config.data.task = "hangproccloth-unimodal"
+    model.config.data.train = ("data/unimodal/train256",)
     model.save_pretrained(checkpoint)
     log = tmp_path / "log.jsonl"
     log.write_text("".join(json.dumps(r) + "\n" for r in [
@@ -42,6 +43,7 @@ def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path):
     assert "| ood | 40 | 0.50 | 0.85 | 0.900 | 0.395 | - |" in card
     assert "- steps: 3 (planned for 30 minutes)" in card and "- wall time: 30 minutes" in card
     assert "best validation RMSE: 0.600 at step 3" in card and "DATA\nTRAIN" in card
+    assert "- training demonstrations: `data/unimodal/train256` (made by the first command below)" in card
 
 
 def test_model_card_of_a_run_whose_log_was_not_kept_says_so(tmp_path):
