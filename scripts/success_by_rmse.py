@@ -5,7 +5,8 @@ for the cloth to hang. Kept as a small JSON that a results page cites.
 
 Episodes are pooled over the splits and put in RMSE bins (--edges); each bin gives its episodes and success rate.
 The RMSE is the executed sample's (`executed_rmse`, recorded by `tax3d eval`), so runs made before it was recorded
-are refused.
+are refused. `--by executed_grip_error` bins by the executed goal's mean distance from the demonstration's at the two
+grasped vertices, the points the policy moves the grippers to.
 """
 
 from __future__ import annotations
@@ -19,11 +20,11 @@ from tax3d import provenance
 from tax3d.atomic import write_text
 
 
-def bins(episodes: list[dict], edges: list[float]) -> list[dict]:
+def bins(episodes: list[dict], edges: list[float], by: str = "executed_rmse") -> list[dict]:
     bounds = list(zip(edges, edges[1:] + [None]))
     out = []
     for low, high in bounds:
-        inside = [e for e in episodes if e["executed_rmse"] >= low and (high is None or e["executed_rmse"] < high)]
+        inside = [e for e in episodes if e[by] >= low and (high is None or e[by] < high)]
         out.append({"low": low, "high": high, "episodes": len(inside),
                     "success_rate": sum(e["success"] for e in inside) / len(inside) if inside else None})
     return out
@@ -35,6 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("out", type=Path)
     parser.add_argument("--splits", default="unseen,ood")
     parser.add_argument("--edges", default="0,0.25,0.5,0.75,1.0", help="lower edges of the RMSE bins, ascending")
+    parser.add_argument("--by", choices=("executed_rmse", "executed_grip_error"), default="executed_rmse",
+                        help="bin by the executed goal's RMSE or by its mean distance at the grasped vertices")
     args = parser.parse_args(argv)
     source = args.eval_dir / "results.json"
     try:
@@ -52,16 +55,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --edges {args.edges}: expected ascending numbers, comma-separated", file=sys.stderr)
         return 2
     splits = [s for s in args.splits.split(",") if s]
-    chosen = [e for e in episodes if e["split"] in splits and e.get("executed_rmse") is not None]
+    chosen = [e for e in episodes if e["split"] in splits and e.get(args.by) is not None]
     if not chosen:
-        print(f"error: {source}: no episode of {', '.join(splits)} has an executed_rmse; expected a run of "
+        print(f"error: {source}: no episode of {', '.join(splits)} has an {args.by}; expected a run of "
               f"`tax3d eval` on demo folders", file=sys.stderr)
         return 2
     kept = {"command": "python scripts/success_by_rmse.py " + " ".join(argv if argv is not None else sys.argv[1:]),
             "source": summary.get("command"), "checkpoint": summary.get("checkpoint"), "pooled_splits": splits,
             "samples": summary.get("args", {}).get("samples"), "select": summary.get("args", {}).get("select"),
             "episodes": len(chosen), "success_rate": sum(e["success"] for e in chosen) / len(chosen),
-            "bins": bins(chosen, edges), "machine": summary.get("machine"), "date": provenance.today()}
+            "by": args.by, "bins": bins(chosen, edges, args.by), "machine": summary.get("machine"),
+            "date": provenance.today()}
     write_text(args.out, json.dumps(kept, indent=1) + "\n")
     print(args.out)
     return 0

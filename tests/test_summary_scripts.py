@@ -110,6 +110,22 @@ def test_success_by_rmse_bins_the_executed_goals(tmp_path):
     refused([script, str(run)], tmp_path / "x.json", "--edges 1,0.5", "--edges", "1,0.5")
 
 
+def test_success_by_rmse_bins_by_the_error_at_the_grasped_vertices(tmp_path):
+    run = tmp_path / "eval-cd"
+    run.mkdir()
+    episodes = [{"split": "unseen", "name": f"demo_{i}", "success": ok, "executed_rmse": 0.1, "executed_grip_error": g}
+                for i, (ok, g) in enumerate([(True, 0.1), (True, 0.2), (False, 0.8), (False, None)])]
+    (run / "results.json").write_text(json.dumps({**summary(0.5, 1.0, 0.5, 1.0), "episodes": episodes}))
+    kept = tmp_path / "bins.json"
+    script = str(ROOT / "scripts" / "success_by_rmse.py")
+    done = subprocess.run([sys.executable, script, str(run), str(kept), "--edges", "0,0.5", "--by",
+                           "executed_grip_error"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    data = json.loads(kept.read_text())
+    assert data["by"] == "executed_grip_error" and data["episodes"] == 3  # the episode without one left out
+    assert [(b["episodes"], b["success_rate"]) for b in data["bins"]] == [(2, 1.0), (1, 0.0)]
+
+
 def test_time_to_quality_collect_keeps_the_training_loss_between_validations(tmp_path):
     run = tmp_path / "run"
     run.mkdir()

@@ -155,11 +155,16 @@ def run_eval_job(job: EvalJob) -> dict:
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
+    executed = getattr(policy, "executed", 0)
+    grip = list(ep.grip_vertices)
+    # the policy moves the grippers to these vertices' predicted goals: their distance from the demonstrated ones
+    grip_error = (None if errors is None or not grip else
+                  float(np.linalg.norm(pred[executed][grip] - job.true_goal[grip], axis=-1).mean()))
     return {
         "split": job.split, "name": job.name, "success": bool(ep.success), "exploded": bool(ep.exploded),
         "rmse": None if errors is None else float(errors.mean()),
         "min_rmse": None if errors is None else float(errors.min()),
-        "executed_rmse": None if errors is None else float(errors[getattr(policy, "executed", 0)]),
+        "executed_rmse": None if errors is None else float(errors[executed]), "executed_grip_error": grip_error,
         "predict_seconds": policy.predict_seconds, "sim_seconds": ep.seconds - policy.predict_seconds,
         "checks": ep.checks, "action_pc": ep.action_pc, "anchor_pc": ep.anchor_pc, "pred_goal": pred,
         "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": list(ep.grip_vertices),
@@ -270,7 +275,7 @@ def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_ev
 
 def _failed(job: EvalJob, why: str) -> dict:
     return {"split": job.split, "name": job.name, "success": False, "exploded": False, "error": why, "rmse": None,
-            "min_rmse": None, "executed_rmse": None, "predict_seconds": 0.0, "sim_seconds": 0.0, "checks": {},
+            "min_rmse": None, "executed_rmse": None, "executed_grip_error": None, "predict_seconds": 0.0, "sim_seconds": 0.0, "checks": {},
             "action_pc": None, "anchor_pc": None, "pred_goal": None, "true_goal": job.true_goal, "released_pc": None,
             "grip_vertices": [], "denoising": None, "cloth_key": cloth_key(job)}
 
@@ -286,6 +291,7 @@ def summarise(results: list[dict], splits: list[str]) -> dict:
             continue
         scored = [r["rmse"] for r in rows if r["rmse"] is not None]
         executed = [r["executed_rmse"] for r in rows if r.get("executed_rmse") is not None]
+        grips = [r["executed_grip_error"] for r in rows if r.get("executed_grip_error") is not None]
         clothes: dict[str, list[dict]] = {}
         for r in rows:
             if r["true_goal"] is not None and r["pred_goal"] is not None:
@@ -301,6 +307,7 @@ def summarise(results: list[dict], splits: list[str]) -> dict:
             "success_rate": float(np.mean([r["success"] for r in rows])),
             "rmse": float(np.mean(scored)) if scored else None,
             "executed_rmse": float(np.mean(executed)) if executed else None,
+            "executed_grip_error": float(np.mean(grips)) if grips else None,
             "coverage_rmse": float(np.mean(coverage)) if coverage else None,
             "precision_rmse": float(np.mean(precision)) if precision else None,
             "predict_seconds": float(np.mean([r["predict_seconds"] for r in rows])),
