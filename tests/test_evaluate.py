@@ -156,6 +156,19 @@ def test_densest_is_a_sample_of_the_closest_pair_not_the_one_between_two_crowds(
     assert densest(torch.as_tensor(samples)) == 0
 
 
+def test_grip_medoid_looks_only_at_the_grasped_vertices():
+    from tax3d.metrics import SELECTIONS, grip_medoid, medoid
+
+    rng = np.random.default_rng(0)
+    centre = rng.normal(size=(6, 3))
+    samples = np.stack([centre + 0.0, centre + 0.0, centre + 0.0])
+    samples[0, [1, 2, 3, 4]] += 9.0  # far from the others except at the grasped rows 0 and 5
+    samples[1, [0, 5]] += 0.5
+    samples[2, [0, 5]] -= 0.6
+    assert medoid(samples) == 1  # sample 0 is far from both others over the whole cloth
+    assert grip_medoid(samples, [0, 5]) == 0 and SELECTIONS["grip_medoid"](samples, (0, 5)) == 0
+
+
 def test_select_medoid_reaches_the_jobs_the_gripper_targets_and_the_results(checkpoint):
     from tax3d.evaluate import plan_jobs
     from tax3d.policy import GoalPolicy

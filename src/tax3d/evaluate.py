@@ -43,9 +43,10 @@ class Args:
     """episodes per split (default: every demo of the split's folder, or the paper's size)"""
     samples: Annotated[int, Positive] = 1
     """goal samples per episode (the policy executes one: --select); RMSE is their mean, coverage their min"""
-    select: Literal["first", "medoid", "densest"] = "first"
+    select: Literal["first", "medoid", "densest", "grip_medoid"] = "first"
     """which goal sample the policy executes: the first (the paper's policy), the medoid (the least summed RMSE to
-    the other samples) or the densest (the first of the closest pair: a sample from a crowd, not between two)"""
+    the other samples), the densest (the first of the closest pair: a sample from a crowd, not between two) or the
+    grip_medoid (the medoid of the grasped vertices alone, where the grippers go)"""
     steps: Annotated[int | None, Positive] = None
     """denoising steps (default: the checkpoint's)"""
     sampler: Literal["ddpm", "ddim"] | None = None

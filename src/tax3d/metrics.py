@@ -59,8 +59,16 @@ def densest(samples) -> int:
     return int(distances.min(1).argmin())
 
 
-SELECTIONS = {"first": lambda samples: 0, "medoid": medoid, "densest": densest}
-"""which of a prediction's goal samples the policy executes (`tax3d eval --select`); "first" is the paper's policy"""
+def grip_medoid(samples, grip) -> int:
+    """Index of the goal sample whose grasped vertices (`grip`, the rows the grippers are sent to) have the least
+    summed RMSE to the other samples' grasped vertices: the medoid of what the policy executes."""
+    return medoid(samples[:, list(grip)])
+
+
+SELECTIONS = {"first": lambda samples, grip: 0, "medoid": lambda samples, grip: medoid(samples),
+              "densest": lambda samples, grip: densest(samples), "grip_medoid": grip_medoid}
+"""which of a prediction's goal samples (K, N, 3) the policy executes, given the grasped rows (`tax3d eval --select`);
+"first" is the paper's policy"""
 
 
 class MeanGoalBaseline:

@@ -16,7 +16,8 @@ class GoalPolicy:
     the paper's stated limitation; reported separately). `offset` is added to the predicted positions (HangBag:
     `tax3d.sim.bag.POLICY_OFFSET`). With several samples it follows the first (select "first", the paper's policy)
     or another of `tax3d.metrics.SELECTIONS` (select "medoid": the sample nearest the others; "densest": one of the
-    closest pair). Called as make_policy(env, state) by run_episode.
+    closest pair; "grip_medoid": the sample whose grasped vertices are nearest the others'). Called as
+    make_policy(env, state) by run_episode.
     """
 
     def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
@@ -49,7 +50,7 @@ class GoalPolicy:
             goals = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps,
                                            sampler=self.sampler, seed=seed)
         self.predict_seconds += time.perf_counter() - start
-        chosen = SELECTIONS[self.select](goals)
+        chosen = SELECTIONS[self.select](goals, self.grip)
         if self.predictions == 0:
             self.first_prediction, self.executed = goals, chosen
         self.predictions += 1
