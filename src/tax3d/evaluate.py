@@ -168,7 +168,7 @@ def run_eval_job(job: EvalJob) -> dict:
         "executed_rmse": None if errors is None else float(errors[executed]), "executed_grip_error": grip_error,
         "predict_seconds": policy.predict_seconds, "sim_seconds": ep.seconds - policy.predict_seconds,
         "checks": ep.checks, "action_pc": ep.action_pc, "anchor_pc": ep.anchor_pc, "pred_goal": pred,
-        "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": list(ep.grip_vertices),
+        "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": grip,
         "denoising": policy.denoising, "cloth_key": cloth_key(job),
     }
 
@@ -276,9 +276,9 @@ def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_ev
 
 def _failed(job: EvalJob, why: str) -> dict:
     return {"split": job.split, "name": job.name, "success": False, "exploded": False, "error": why, "rmse": None,
-            "min_rmse": None, "executed_rmse": None, "executed_grip_error": None, "predict_seconds": 0.0, "sim_seconds": 0.0, "checks": {},
-            "action_pc": None, "anchor_pc": None, "pred_goal": None, "true_goal": job.true_goal, "released_pc": None,
-            "grip_vertices": [], "denoising": None, "cloth_key": cloth_key(job)}
+            "min_rmse": None, "executed_rmse": None, "executed_grip_error": None, "predict_seconds": 0.0,
+            "sim_seconds": 0.0, "checks": {}, "action_pc": None, "anchor_pc": None, "pred_goal": None,
+            "true_goal": job.true_goal, "released_pc": None, "grip_vertices": [], "denoising": None, "cloth_key": cloth_key(job)}
 
 
 def summarise(results: list[dict], splits: list[str]) -> dict:
