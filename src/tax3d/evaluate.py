@@ -278,7 +278,8 @@ def _failed(job: EvalJob, why: str) -> dict:
     return {"split": job.split, "name": job.name, "success": False, "exploded": False, "error": why, "rmse": None,
             "min_rmse": None, "executed_rmse": None, "executed_grip_error": None, "predict_seconds": 0.0,
             "sim_seconds": 0.0, "checks": {}, "action_pc": None, "anchor_pc": None, "pred_goal": None,
-            "true_goal": job.true_goal, "released_pc": None, "grip_vertices": [], "denoising": None, "cloth_key": cloth_key(job)}
+            "true_goal": job.true_goal, "released_pc": None, "grip_vertices": [], "denoising": None,
+            "cloth_key": cloth_key(job)}
 
 
 def summarise(results: list[dict], splits: list[str]) -> dict:
