@@ -9,7 +9,8 @@ same machine and none borrows another's core. The run plans its steps to end aft
 minutes and validates `--validations` times on the first `--val-demos` demos of `--val`, which training never
 sees, with the checkpoint's own sampler and steps (the ones `tax3d predict` uses by default). Prints one JSON
 object, also written to OUT/time_to_quality.json: per run, its options, steps per minute and every validation
-(minutes, step, val_rmse: min over `--val-samples` samples, val_rmse_mean: mean over them).
+(minutes, step, val_rmse: min over `--val-samples` samples, val_rmse_mean: mean over them; on multimodal
+val_coverage_rmse: each cloth's goals against the samples of all its demos, appendix C).
 
     python benchmarks/time_to_quality.py --collect NAME RUN_DIR "COMMAND" --out runs/finals
 
@@ -54,6 +55,7 @@ def summary(out: Path, options: str, command: list[str]) -> dict:
         if "val_rmse" in r:
             curve.append({"minutes": round(r["seconds"] / 60, 2), "step": r["step"], "val_rmse": r["val_rmse"],
                           "val_rmse_mean": r["val_rmse_mean"],
+                          **({"val_coverage_rmse": r["val_coverage_rmse"]} if "val_coverage_rmse" in r else {}),
                           "train_mse": sum(losses) / len(losses) if losses else None})
             losses = []
     last = records[-1]

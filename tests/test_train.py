@@ -173,6 +173,38 @@ def test_ema_decay_warms_up():
     assert train.ema_decay(20, 0.5) == 0.5
 
 
+class _FixedSamples:
+    """Stands in for a model in `validate`: returns the samples it was given, scene by scene."""
+
+    training = False
+
+    def __init__(self, samples):
+        self.samples = samples
+
+    def eval(self):
+        return self
+
+    def train(self, mode=True):
+        return self
+
+    def predict_scenes(self, scenes, **_):
+        return self.samples[: len(scenes)]
+
+
+def test_validation_reports_coverage_where_demos_share_an_observation():
+    """Two demos of one cloth (one per hole) share their clouds: each goal is covered by the other's sample."""
+    cloth, other = synthetic_demo(0), synthetic_demo(1)
+    first = {**cloth, "flow": cloth["flow"]}
+    second = {**cloth, "flow": cloth["flow"] + 3.0}  # the other hole: every point 3 units off the first goal
+    goal = [d["action_pc"] + d["flow"] for d in (first, second, other)]
+    samples = [np.stack([goal[1], goal[1]]), np.stack([goal[0], goal[0]]), np.stack([goal[2] + 1.0] * 2)]
+    record = train.validate(_FixedSamples(samples), [first, second, other], num_samples=2, seed=0)
+    assert record["val_rmse"] == pytest.approx((2 * 3 * 3**0.5 + 3**0.5) / 3)  # both cloth samples at the wrong hole
+    assert record["val_coverage_rmse"] == pytest.approx(3**0.5 / 2)  # the cloth covered exactly, the other not
+    assert train.scene_groups([(d["action_pc"], d["anchor_pc"]) for d in (first, other, second)]) == [[0, 2], [1]]
+    assert "val_coverage_rmse" not in train.validate(_FixedSamples(samples[2:]), [other], num_samples=2, seed=0)
+
+
 def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeypatch):
     """--train.minutes measures the step rate, fixes train.steps and val_every (recorded in config.json and the
     log) and a resumed run continues the same plan."""
