@@ -24,6 +24,7 @@ def read_curve(run: Path) -> dict:
         raise ValueError(f"{run}: no readable config.json and log.jsonl ({type(err).__name__}); expected a "
                          f"`tax3d train` output folder") from None
     points = [{"step": d["step"], "val_rmse": d["val_rmse"], "val_rmse_mean": d.get("val_rmse_mean"),
+               **({"val_coverage_rmse": d["val_coverage_rmse"]} if "val_coverage_rmse" in d else {}),
                "minutes": round(d["seconds"] / 60, 1)} for d in lines if "val_rmse" in d]
     if not points:
         raise ValueError(f"{log}: no validated step; expected lines with val_rmse")

@@ -78,7 +78,8 @@ def test_val_curve_kept(tmp_path):
     (run / "config.json").write_text(json.dumps(config))
     log = [{"step": 20, "loss": 1.0, "seconds": 6.0}, {"step": 500, "loss": 0.5, "val_rmse": 2.5, "val_rmse_mean": 2.7,
                                                        "seconds": 300.0},
-           {"step": 1000, "loss": 0.4, "val_rmse": 1.25, "val_rmse_mean": 1.5, "seconds": 600.0}]
+           {"step": 1000, "loss": 0.4, "val_rmse": 1.25, "val_rmse_mean": 1.5, "val_coverage_rmse": 0.75,
+            "seconds": 600.0}]
     (run / "log.jsonl").write_text("".join(json.dumps(d) + "\n" for d in log))
     kept = tmp_path / "curve.json"
     done = subprocess.run([sys.executable, str(ROOT / "scripts" / "val_curve.py"), str(run), str(kept)],
@@ -87,6 +88,7 @@ def test_val_curve_kept(tmp_path):
     curve = json.loads(kept.read_text())
     assert [p["step"] for p in curve["points"]] == [500, 1000] and curve["points"][1]["minutes"] == 10.0
     assert curve["val_demos"] == 10 and curve["val"] == ["data/u/unseen"]
+    assert "val_coverage_rmse" not in curve["points"][0] and curve["points"][1]["val_coverage_rmse"] == 0.75
     (run / "log.jsonl").write_text(json.dumps(log[0]) + "\n")
     refused([str(ROOT / "scripts" / "val_curve.py"), str(run)], tmp_path / "c2.json", "no validated step")
 
