@@ -122,7 +122,10 @@ def card(checkpoint: Path, config: dict, records: list[dict], summary: dict, dat
         + " (made by the first command below)",
         *run_lines(config, records, plan),
     ]
-    if best is not None:
+    if best is not None and Path(summary.get("checkpoint", "")).name == "last" and vals[-1] is not best:
+        lines.append(f"- last validation RMSE: {vals[-1]['val_rmse']:.3f} at step {vals[-1]['step']} (these weights, "
+                     f"the run's last); lowest: {best['val_rmse']:.3f} at step {best['step']}")
+    elif best is not None:
         lines.append(f"- best validation RMSE: {best['val_rmse']:.3f} at step {best['step']} (these weights)")
     lines += [
         "",
