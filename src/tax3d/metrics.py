@@ -54,7 +54,7 @@ def densest(samples) -> int:
     from between."""
     if len(samples) < 2:
         return 0
-    distances = np.array(rmse(samples[:, None], samples[None]), dtype=np.float64)
+    distances = torch.as_tensor(rmse(samples[:, None], samples[None]), dtype=torch.float64).cpu().numpy().copy()
     np.fill_diagonal(distances, np.inf)
     return int(distances.min(1).argmin())
 
