@@ -54,9 +54,9 @@ def densest(samples) -> int:
     from between."""
     if len(samples) < 2:
         return 0
-    distances = torch.as_tensor(rmse(samples[:, None], samples[None]), dtype=torch.float64).cpu().numpy().copy()
-    np.fill_diagonal(distances, np.inf)
-    return int(distances.min(1).argmin())
+    distances = torch.as_tensor(rmse(samples[:, None], samples[None]), dtype=torch.float64)
+    distances.fill_diagonal_(float("inf"))
+    return int(distances.min(1).values.argmin())
 
 
 def grip_medoid(samples, grip) -> int:
