@@ -55,6 +55,7 @@ def summary(out: Path, options: str, command: list[str]) -> dict:
         if "val_rmse" in r:
             curve.append({"minutes": round(r["seconds"] / 60, 2), "step": r["step"], "val_rmse": r["val_rmse"],
                           "val_rmse_mean": r["val_rmse_mean"],
+                          **({"val_grip_error": r["val_grip_error"]} if "val_grip_error" in r else {}),
                           **({"val_coverage_rmse": r["val_coverage_rmse"]} if "val_coverage_rmse" in r else {}),
                           "train_mse": sum(losses) / len(losses) if losses else None})
             losses = []

@@ -195,6 +195,23 @@ def test_dataset_items(demo_dir):
         ds[3]
 
 
+@pytest.mark.parametrize("variant", ["cd", "sd"])
+def test_grip_weight_marks_the_grasped_vertices(demo_dir, variant):
+    """grip_weight: the rows of the demo's gripper vertices (vertex 0 here) get it, every other row 1 (SD: the
+    anchor rows too); the default adds no weights at all."""
+    folder, _ = demo_dir
+    full = DemoDataset(folder, variant, num_action_points=None, num_anchor_points=NB, grip_weight=8.0)[0]
+    expected = torch.ones(len(full["target"]))
+    expected[0] = 8.0
+    assert torch.equal(full["point_weight"], expected)
+    sampled = DemoDataset(folder, variant, num_action_points=NA, num_anchor_points=NB, grip_weight=8.0, subsets=2)
+    for item in (sampled[i] for i in range(3)):
+        assert torch.equal(item["point_weight"][:NA] == 8.0, item["action_idx"] == 0)
+    assert "point_weight" not in DemoDataset(folder, variant, num_action_points=NA, num_anchor_points=NB)[0]
+    with pytest.raises(UsageError, match="grip_weight"):
+        DemoDataset(folder, variant, grip_weight=0.0)
+
+
 def test_rotation_is_on_for_training_only(demo_dir):
     folder, _ = demo_dir
     kwargs = dict(num_action_points=NA, num_anchor_points=NB)

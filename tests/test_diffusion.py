@@ -275,3 +275,21 @@ def test_epsilon_loss_is_snr_weighted_x0_error(diffusion):
     assert snr[0] > 1000 * snr[1]
     with pytest.raises(ValueError):
         GaussianDiffusion(linear_betas(T), loss="l1")
+
+
+@pytest.mark.parametrize("loss", ["epsilon", "v"])
+def test_point_weights(diffusion, loss):
+    """Per-point weights: uniform ones change nothing; otherwise each point's error counts by its weight."""
+    d = GaussianDiffusion(linear_betas(T), loss=loss)
+    torch.manual_seed(3)
+    x0 = torch.randn(2, 6, 3, dtype=torch.float64)
+    t, noise = torch.tensor([5, 60]), torch.randn_like(x0)
+    out = torch.randn(2, 6, 6, dtype=torch.float64)
+    plain = d.training_losses(lambda x, tt: out, x0, t, noise)["mse"]
+    torch.testing.assert_close(d.training_losses(lambda x, tt: out, x0, t, noise, torch.full((2, 6), 3.0))["mse"],
+                               plain)
+    weight = torch.ones(2, 6, dtype=torch.float64)
+    weight[:, 0] = 0.0
+    out_rest = out[:, 1:]
+    masked = d.training_losses(lambda x, tt: out_rest, x0[:, 1:], t, noise[:, 1:])["mse"]
+    torch.testing.assert_close(d.training_losses(lambda x, tt: out, x0, t, noise, weight)["mse"], masked)

@@ -205,6 +205,19 @@ def test_validation_reports_coverage_where_demos_share_an_observation():
     assert "val_coverage_rmse" not in train.validate(_FixedSamples(samples[2:]), [other], num_samples=2, seed=0)
 
 
+def test_validation_reports_the_error_at_the_grasped_vertices():
+    """val_grip_error: the mean distance, over samples, at the demo's gripper vertices only."""
+    demo = synthetic_demo(0)
+    grip = [v for g in demo["anchors"].values() for v in g["vertices"]]
+    goal = demo["action_pc"] + demo["flow"]
+    off_grip, at_grip = goal.copy(), goal.copy()
+    off_grip[[i for i in range(len(goal)) if i not in grip]] += 5.0
+    at_grip[grip] += np.array([0.0, 0.0, 2.0])
+    assert train.validate(_FixedSamples([np.stack([off_grip, goal])]), [demo], 2, 0)["val_grip_error"] == 0.0
+    assert train.validate(_FixedSamples([np.stack([at_grip, goal])]), [demo], 2, 0)["val_grip_error"] == \
+        pytest.approx(1.0)
+
+
 def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeypatch):
     """--train.minutes measures the step rate, fixes train.steps and val_every (recorded in config.json and the
     log) and a resumed run continues the same plan."""

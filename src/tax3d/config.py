@@ -68,6 +68,8 @@ class DataConfig:
     """farthest-point subsets sampled once per demo, an item picking one at random (0: sample afresh each time)"""
     rotate: bool = True
     """rotate anchor and goal about z by U(0, 2 pi) in training"""
+    grip_weight: Annotated[float, Positive] = 1.0
+    """the loss weight of the grasped vertices (where the policy's grippers go) against 1 for every other point"""
     task: str = ""
     """the benchmark task the demonstrations come from (recorded so evaluation can check it; empty: unknown)"""
 

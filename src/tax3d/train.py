@@ -33,7 +33,7 @@ from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
 from tax3d.checkpoint import STATE_NAME, find_last, read_weights, save_checkpoint, truncate_log
-from tax3d.data.dataset import DemoDataset, demo_files
+from tax3d.data.dataset import DemoDataset, demo_files, grip_vertices
 from tax3d.data.format import load_demo
 from tax3d.errors import UsageError
 from tax3d.metrics import coverage_rmse, min_of_samples_rmse, rmse
@@ -153,7 +153,9 @@ def load_val_demos(config: cfg.Config) -> list[dict]:
 
 def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps: int | None = None) -> dict:
     """World-frame RMSE on whole action clouds: the mean over demos of the min over samples, and over all samples;
-    where demos share an observation (one per mode), also the coverage RMSE over those groups (appendix C)."""
+    val_grip_error: the mean over demos and samples of the distance at the grasped vertices (where the policy's
+    grippers go); where demos share an observation (one per mode), also the coverage RMSE over those groups
+    (appendix C)."""
     was_training = model.training
     model.eval()
     scenes = [(d["action_pc"], d["anchor_pc"]) for d in demos]
@@ -163,6 +165,10 @@ def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps
     best = [float(min_of_samples_rmse(p, g)) for p, g in zip(predictions, goals)]
     every = [float(rmse(p, g).mean()) for p, g in zip(predictions, goals)]
     record = {"val_rmse": float(np.mean(best)), "val_rmse_mean": float(np.mean(every))}
+    grip = [grip_vertices(d).numpy() for d in demos]
+    if all(len(v) for v in grip):
+        record["val_grip_error"] = float(np.mean([np.linalg.norm(p[:, v] - g[v], axis=-1).mean()
+                                                  for p, g, v in zip(predictions, goals, grip)]))
     groups = scene_groups(scenes)
     if any(len(g) > 1 for g in groups):
         record["val_coverage_rmse"] = float(np.mean([
@@ -345,7 +351,8 @@ def run(args: Args) -> int:
     dataset = DemoDataset(config.data.train, config.model.variant, train=True, rotate=config.data.rotate,
                           num_action_points=config.data.num_action_points,
                           num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size,
-                          target_scale=config.data.target_scale, seed=c.seed, subsets=config.data.subsets)
+                          target_scale=config.data.target_scale, seed=c.seed, subsets=config.data.subsets,
+                          grip_weight=config.data.grip_weight)
     val_demos = load_val_demos(config)
     distributed.start(world, device)
     try:

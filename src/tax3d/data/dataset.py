@@ -134,6 +134,12 @@ def make_sample(
     return sample
 
 
+def grip_vertices(demo: dict) -> torch.Tensor:
+    """The action-cloud rows the grippers hold in a demo (the vertices of its `anchors`), int64."""
+    rows = [v for gripper in demo["anchors"].values() for v in gripper["vertices"]]
+    return torch.tensor(rows, dtype=torch.int64)
+
+
 def demo_files(sources) -> list[Path]:
     """The demo files of one or more folders or files, folders expanded in index order."""
     if isinstance(sources, (str, os.PathLike)):
@@ -173,6 +179,8 @@ class DemoDataset(Dataset):
       goal (Na, 3): the world-frame goal of the (possibly rotated) scene; to_world(target, item) returns it
       angle (): the augmentation's z-rotation; pivot (3,): the world point it turned about
       action_idx (Na,) int64: rows of the demo's action cloud; demo_index () int64: position in `files`
+      point_weight (Na,), or (Na + Nb,) for SD/SP, only with grip_weight != 1: the loss weight of each target
+        row, grip_weight at the demo's grasped vertices (its `anchors`), 1 elsewhere
     NAC variants get the same items as CD/CP: to_world needs the action points, the model ignores them.
     Item i of epoch e uses demo i % len(files) and a generator seeded by (seed, e, i); call set_epoch(e)
     before each epoch (with DataLoader workers, before the loader's iterator is made).
@@ -194,6 +202,7 @@ class DemoDataset(Dataset):
         target_scale: float = 1.0,
         seed: int = 0,
         subsets: int = 0,
+        grip_weight: float = 1.0,
     ):
         self.spec = variant_spec(variant)
         self.files = demo_files(sources)
@@ -206,11 +215,15 @@ class DemoDataset(Dataset):
         self.num_anchor_points = num_anchor_points
         self.train_size = train_size
         self.target_scale = float(target_scale)
+        if not grip_weight > 0:
+            raise UsageError(f"grip_weight is {grip_weight}; expected a positive loss weight")
+        self.grip_weight = float(grip_weight)
         self.seed = int(seed)
         self.epoch = 0
-        self.demos = []
+        self.demos, self.grip = [], []
         for path in self.files:
             demo = load_demo(path)
+            self.grip.append(grip_vertices(demo))
             self.demos.append(tuple(torch.from_numpy(np.asarray(x, dtype=np.float64)) for x in (
                 demo["action_pc"], demo["anchor_pc"], demo["action_pc"] + demo["flow"])))
         if subsets < 0:
@@ -237,6 +250,10 @@ class DemoDataset(Dataset):
             self.num_action_points, self.num_anchor_points, self.rotate, self.target_scale, indices,
         )
         sample["demo_index"] = torch.tensor(demo_index, dtype=torch.int64)
+        if self.grip_weight != 1.0:
+            weight = torch.ones(sample["target"].shape[0], dtype=torch.float32)
+            weight[:len(sample["action_idx"])][torch.isin(sample["action_idx"], self.grip[demo_index])] = self.grip_weight
+            sample["point_weight"] = weight
         return sample
 
     def set_epoch(self, epoch: int) -> None:
@@ -265,5 +282,5 @@ class DemoDataset(Dataset):
 
 __all__ = [
     "VARIANTS", "VariantSpec", "variant_spec", "frame_inputs", "make_target", "to_world", "make_sample",
-    "demo_files", "split_demos", "DemoDataset", "DemoError",
+    "grip_vertices", "demo_files", "split_demos", "DemoDataset", "DemoError",
 ]

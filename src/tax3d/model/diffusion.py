@@ -77,6 +77,14 @@ def mean_flat(x: torch.Tensor) -> torch.Tensor:
     return x.reshape(x.shape[0], -1).mean(dim=1)
 
 
+def point_mean(x: torch.Tensor, weight: torch.Tensor | None) -> torch.Tensor:
+    """(B, N, C) -> (B,): the mean over channels, then over points weighted by `weight` (B, N) (None: uniform)."""
+    if weight is None:
+        return mean_flat(x)
+    weight = weight.to(x.dtype)
+    return (x.mean(-1) * weight).sum(-1) / weight.sum(-1)
+
+
 #################################################################################
 #                                 Diffusion                                     #
 #################################################################################
@@ -238,10 +246,12 @@ class GaussianDiffusion:
         return weights[self.loss]
 
     def training_losses(self, model_fn: ModelFn, x_start: torch.Tensor, t: torch.Tensor,
-                        noise: torch.Tensor | None = None) -> dict:
+                        noise: torch.Tensor | None = None, point_weight: torch.Tensor | None = None) -> dict:
         """Hybrid loss of Improved DDPM (docs/reference.md, Diffusion). Returns per-sample (B,) tensors:
         "mse" (the mean term, mean over points and channels), "vb" (zeros without learn_sigma) and "loss" = mse + vb.
         The mean term is the epsilon MSE (loss "epsilon", the paper's) or x0_loss_weight(t) times the x_0 MSE.
+        `point_weight` (B, N), when given, weights each point's squared error in the mean term (normalised to a
+        mean of 1 per sample, so uniform weights change nothing).
         The VB term sees the predicted mean stop-gradiented, so it trains the variance channels only."""
         if noise is None:
             noise = torch.randn_like(x_start)
@@ -250,10 +260,10 @@ class GaussianDiffusion:
         C = x_start.shape[-1]
         eps = model_output[..., :C]
         if self.loss == "epsilon":
-            mse = mean_flat((noise - eps) ** 2)
+            mse = point_mean((noise - eps) ** 2, point_weight)
         else:
             x0 = self.predict_xstart_from_eps(x_t, t, eps)
-            mse = self.x0_loss_weight(t).to(x0.dtype) * mean_flat((x_start - x0) ** 2)
+            mse = self.x0_loss_weight(t).to(x0.dtype) * point_mean((x_start - x0) ** 2, point_weight)
         if self.learn_sigma:
             frozen = torch.cat([eps.detach(), model_output[..., C:]], dim=-1)
             vb = self.vb_terms_bpd(frozen, x_start, x_t, t)

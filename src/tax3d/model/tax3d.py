@@ -91,7 +91,8 @@ class Tax3D(nn.Module):
             return {"loss": mse, "mse": mse, "vb": torch.zeros_like(mse)}
         if t is None:
             t = self.diffusion.sample_timesteps(target.shape[0], target.device)
-        losses = self.diffusion.training_losses(self.model_fn(action, anchor), target, t, noise)
+        losses = self.diffusion.training_losses(self.model_fn(action, anchor), target, t, noise,
+                                                batch.get("point_weight"))
         return {k: v.mean() for k, v in losses.items()}
 
     def sampling(self, steps: int | None, sampler: str | None, prefix: str = "") -> tuple[int, str]:
