@@ -25,6 +25,7 @@ def read_curve(run: Path) -> dict:
                          f"`tax3d train` output folder") from None
     points = [{"step": d["step"], "val_rmse": d["val_rmse"], "val_rmse_mean": d.get("val_rmse_mean"),
                **({"val_coverage_rmse": d["val_coverage_rmse"]} if "val_coverage_rmse" in d else {}),
+               **({"val_grip_error": d["val_grip_error"]} if "val_grip_error" in d else {}),
                "minutes": round(d["seconds"] / 60, 1)} for d in lines if "val_rmse" in d]
     if not points:
         raise ValueError(f"{log}: no validated step; expected lines with val_rmse")
