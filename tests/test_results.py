@@ -208,6 +208,24 @@ def eight_times() -> dict:
     return out
 
 
+def grip_weights() -> dict:
+    out = {**study({"v-grip16-60min": [(m * 12, 1.5 - m / 10) for m in range(1, 7)],
+                    "v-grip128-60min": [(m * 13, 1.6 - m / 10) for m in range(1, 7)]}), "minutes": 60.0}
+    for name, weight in (("v-grip16-60min", 16.0), ("v-grip128-60min", 128.0)):
+        out["runs"][name]["config"]["data"] = {"grip_weight": weight}
+        out["runs"][name]["minutes"] = 70.0
+        for point in out["runs"][name]["curve"]:
+            point["val_grip_error"] = point["val_rmse"] / 2
+    return out
+
+
+def gripped_policy(unseen: float, ood: float, grip: float) -> dict:
+    out = policy(unseen, ood)
+    for split in out["summary"]["splits"].values():
+        split.update(rmse=0.5, executed_grip_error=grip)
+    return out
+
+
 def multimodal_demos() -> dict:
     out = demos()
     for run in out["runs"].values():
@@ -279,6 +297,10 @@ def measurement_json() -> dict[str, dict]:
         "training/ttq-9.json": points(),
         "training/ttq-10.json": demos(),
         "training/ttq-12.json": eight_times(),
+        "training/ttq-13.json": grip_weights(),
+        "evals/unimodal-cd-cpu-v-grip16-60min-unseen-ood.json": gripped_policy(0.875, 0.75, 0.125),
+        "evals/unimodal-cd-cpu-v-grip128-60min.json": gripped_policy(0.75, 0.75, 0.25),
+        "evals/unimodal-cd-cpu-v-256demos-60min-rerun.json": gripped_policy(0.625, 0.5, 0.375),
         "training/multimodal-ttq-11.json": multimodal_demos(),
         "evals/multimodal-cd-cpu-v-256demos-60min.json": policy(0.5, 0.25),
         "evals/multimodal-cd-cpu-85min.json": policy(0.25, 0.125),
@@ -345,6 +367,10 @@ def test_measurement_pages_from_fixture_json(measured):
     assert ("The smaller set's run repeats the study above (0.700 against 0.900). The larger set's run ends at 0.900 "
             "after 5,400 steps, where the other stood at 0.800 by step 5,000. Its plan timed its first steps slower "
             "(0.625 s against 0.500 s), so it ended after 54 minutes") in training
+    assert ("W = 16 and 128 end at validation RMSE 0.900 and 1.000 (unweighted: 0.700), grip error 0.450 and 0.500. "
+            "With their best weights the policy hangs 0.88 / 0.75 and 0.75 / 0.75 of `unseen` / `ood` cloths, "
+            "against 0.62 / 0.50 unweighted.") in training
+    assert "grasped vertices lie 0.125 / 0.125 from the demonstration's (W = 16) against 0.375 / 0.375" in training
     assert "the larger set covers 1.050 against 1.050 after about 20 minutes" in training
     assert "hangs 0.50 / 0.25 of `unseen` / `ood` cloths, against 0.25 / 0.12 for the run it replaces" in training
     assert "planned for 30 minutes (`--train.minutes 30`, 3,000 steps), ends at validation RMSE 1.250" in training
