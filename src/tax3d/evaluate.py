@@ -134,7 +134,7 @@ def _predictor(checkpoint: str, device: str = "cpu"):
 
 def run_eval_job(job: EvalJob) -> dict:
     """One evaluation episode in this process: predict, execute open or closed loop, release, judge."""
-    from tax3d.metrics import rmse
+    from tax3d.metrics import grip_error, rmse
     from tax3d.policy import GoalPolicy
     from tax3d.sim.scenes import process_env
     from tax3d.sim.episode import run_episode
@@ -158,14 +158,12 @@ def run_eval_job(job: EvalJob) -> dict:
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
     executed = getattr(policy, "executed", 0)
     grip = list(ep.grip_vertices)
-    # the policy moves the grippers to these vertices' predicted goals: their distance from the demonstrated ones
-    grip_error = (None if errors is None or not grip else
-                  float(np.linalg.norm(pred[executed][grip] - job.true_goal[grip], axis=-1).mean()))
+    executed_grip_error = None if errors is None or not grip else grip_error(pred[executed], job.true_goal, grip)
     return {
         "split": job.split, "name": job.name, "success": bool(ep.success), "exploded": bool(ep.exploded),
         "rmse": None if errors is None else float(errors.mean()),
         "min_rmse": None if errors is None else float(errors.min()),
-        "executed_rmse": None if errors is None else float(errors[executed]), "executed_grip_error": grip_error,
+        "executed_rmse": None if errors is None else float(errors[executed]), "executed_grip_error": executed_grip_error,
         "predict_seconds": policy.predict_seconds, "sim_seconds": ep.seconds - policy.predict_seconds,
         "checks": ep.checks, "action_pc": ep.action_pc, "anchor_pc": ep.anchor_pc, "pred_goal": pred,
         "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": grip,

@@ -59,6 +59,13 @@ def densest(samples) -> int:
     return int(distances.min(1).values.argmin())
 
 
+def grip_error(samples, goal, grip) -> float:
+    """Mean distance of the goal samples (..., N, 3) from `goal` (N, 3) at the grasped rows `grip`, where the policy
+    sends the grippers."""
+    grip = list(grip)
+    return float(np.linalg.norm(samples[..., grip, :] - goal[grip], axis=-1).mean())
+
+
 def grip_medoid(samples, grip) -> int:
     """Index of the goal sample whose grasped vertices (`grip`, the rows the grippers are sent to) have the least
     summed RMSE to the other samples' grasped vertices: the medoid of what the policy executes."""

@@ -33,10 +33,10 @@ from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
 from tax3d.checkpoint import STATE_NAME, find_last, read_weights, save_checkpoint, truncate_log
-from tax3d.data.dataset import DemoDataset, demo_files, grip_vertices
-from tax3d.data.format import load_demo
+from tax3d.data.dataset import DemoDataset, demo_files
+from tax3d.data.format import grip_vertices, load_demo
 from tax3d.errors import UsageError
-from tax3d.metrics import coverage_rmse, min_of_samples_rmse, rmse
+from tax3d.metrics import coverage_rmse, grip_error, min_of_samples_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
 from tax3d.options import OutputFolder
 
@@ -165,10 +165,9 @@ def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps
     best = [float(min_of_samples_rmse(p, g)) for p, g in zip(predictions, goals)]
     every = [float(rmse(p, g).mean()) for p, g in zip(predictions, goals)]
     record = {"val_rmse": float(np.mean(best)), "val_rmse_mean": float(np.mean(every))}
-    grip = [grip_vertices(d).numpy() for d in demos]
-    if all(len(v) for v in grip):
-        record["val_grip_error"] = float(np.mean([np.linalg.norm(p[:, v] - g[v], axis=-1).mean()
-                                                  for p, g, v in zip(predictions, goals, grip)]))
+    grip = [grip_vertices(d) for d in demos]
+    if all(grip):
+        record["val_grip_error"] = float(np.mean([grip_error(p, g, v) for p, g, v in zip(predictions, goals, grip)]))
     groups = scene_groups(scenes)
     if any(len(g) > 1 for g in groups):
         record["val_coverage_rmse"] = float(np.mean([

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from tax3d.data.format import DemoError, list_demos, load_demo
+from tax3d.data.format import DemoError, grip_vertices, list_demos, load_demo
 from tax3d.errors import UsageError
 from tax3d.geometry import farthest_point_sample, random_angle, rotate_z
 from tax3d.model.variants import VARIANTS, VariantSpec, variant_spec
@@ -134,12 +134,6 @@ def make_sample(
     return sample
 
 
-def grip_vertices(demo: dict) -> torch.Tensor:
-    """The action-cloud rows the grippers hold in a demo (the vertices of its `anchors`), int64."""
-    rows = [v for gripper in demo["anchors"].values() for v in gripper["vertices"]]
-    return torch.tensor(rows, dtype=torch.int64)
-
-
 def demo_files(sources) -> list[Path]:
     """The demo files of one or more folders or files, folders expanded in index order."""
     if isinstance(sources, (str, os.PathLike)):
@@ -223,7 +217,7 @@ class DemoDataset(Dataset):
         self.demos, self.grip = [], []
         for path in self.files:
             demo = load_demo(path)
-            self.grip.append(grip_vertices(demo))
+            self.grip.append(torch.tensor(grip_vertices(demo), dtype=torch.int64))
             self.demos.append(tuple(torch.from_numpy(np.asarray(x, dtype=np.float64)) for x in (
                 demo["action_pc"], demo["anchor_pc"], demo["action_pc"] + demo["flow"])))
         if subsets < 0:
@@ -282,5 +276,5 @@ class DemoDataset(Dataset):
 
 __all__ = [
     "VARIANTS", "VariantSpec", "variant_spec", "frame_inputs", "make_target", "to_world", "make_sample",
-    "grip_vertices", "demo_files", "split_demos", "DemoDataset", "DemoError",
+    "demo_files", "split_demos", "DemoDataset", "DemoError",
 ]

@@ -184,6 +184,11 @@ def save_demo(path: str | os.PathLike, demo: dict) -> None:
     atomic_write(path, write)
 
 
+def grip_vertices(demo: dict) -> list[int]:
+    """The action-cloud rows the demo's grippers hold: the vertices of its `anchors`."""
+    return [int(v) for gripper in demo["anchors"].values() for v in gripper["vertices"]]
+
+
 def demo_index(path: str | os.PathLike) -> int | None:
     m = _DEMO_NAME.match(Path(path).name)
     return int(m.group(1)) if m else None
