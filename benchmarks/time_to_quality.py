@@ -45,9 +45,10 @@ def train_command(args, name: str, options: str) -> list[str]:
 def summary(out: Path, options: str, command: list[str]) -> dict:
     """One run's curve from its log.jsonl: every validation, with the mean of the training loss's mean term (`mse`)
     over the steps since the one before (train_mse: a falling train_mse beside a flat val_rmse is overfitting), and
-    the plan it made."""
+    the plan it made (and its shortening at the first validation, if any)."""
     records = read_log(out / "log.jsonl")
     plan = next((r["plan"] for r in records if "plan" in r), None)
+    replan = next((r["replan"] for r in records if "replan" in r), None)
     curve, losses = [], []
     for r in records:
         if "mse" in r:
@@ -62,7 +63,7 @@ def summary(out: Path, options: str, command: list[str]) -> dict:
     last = records[-1]
     config = json.loads((out / "config.json").read_text())
     return {"options": options, "command": " ".join(shlex.quote(c) for c in command), "config": config, "plan": plan,
-            "steps": last["step"], "minutes": round(last["seconds"] / 60, 2),
+            **({"replan": replan} if replan else {}), "steps": last["step"], "minutes": round(last["seconds"] / 60, 2),
             "steps_per_minute": round(last["step"] / (last["seconds"] / 60), 1), "curve": curve}
 
 

@@ -246,6 +246,32 @@ def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeyp
     assert read_log(out)[-1]["step"] == 60
 
 
+def test_minutes_plan_is_shortened_when_steps_slow_down(tmp_path, demos, monkeypatch):
+    """Timed again at the first validation, a plan whose steps have slowed since the warm-up is shortened to end on
+    time (recorded in config.json and the log line `replan`), and its learning rate still never rises."""
+    clock = {"now": 1000.0, "steps": 0}
+    monkeypatch.setattr(train.time, "time", lambda: clock["now"])
+    step_loss = train.TrainingLoss.forward
+
+    def timed(self, *a):
+        clock["steps"] += 1
+        clock["now"] += 0.5 if clock["steps"] <= 12 else 1.0  # twice as slow after the plan at step 12
+        return step_loss(self, *a)
+
+    monkeypatch.setattr(train.TrainingLoss, "forward", timed)
+    out = tmp_path / "slowed"
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
+                 "--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]) == 0
+    log = read_log(out)
+    assert next(r["plan"] for r in log if "plan" in r)["steps"] == 60
+    # at step 20, 6 + 8 s have passed: the 16 s left hold 16 steps of 1 s
+    replan = next(r["replan"] for r in log if "replan" in r)
+    assert replan["steps"] == 36 and replan["planned"] == 60 and replan["step_seconds"] == pytest.approx(1.0)
+    assert cfg.load(out / "config.json").train.steps == 36 and log[-1]["step"] == 36
+    assert log[-1]["seconds"] == pytest.approx(30.0)
+    assert all(r["lr"] <= before["lr"] for before, r in zip(log[10:], log[11:]))
+
+
 def test_default_preset_fits_the_machine_and_long_runs_are_told(tmp_path, demos, capsys, monkeypatch):
     monkeypatch.setattr(train, "LONG_RUN_HOURS", 0.0)
     args = [a for a in TINY if a not in ("--preset", "cpu")]

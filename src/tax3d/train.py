@@ -139,6 +139,14 @@ def plan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: floa
     return step + max(1, int(left / per_step)), c.val_every
 
 
+def replan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: float, val_seconds: float) -> int:
+    """The step count of a planned run timed again at its first validation: the steps that fit the minutes left at
+    the rate measured since the plan, never more than planned, so the learning rate never rises."""
+    left = 60.0 * c.minutes - elapsed - val_seconds
+    per_step = step_seconds + val_seconds / c.val_every
+    return min(c.steps, step + max(1, int(left / per_step)))
+
+
 # --- validation ------------------------------------------------------------------------------------------------
 
 
@@ -307,6 +315,23 @@ def make_plan(config: cfg.Config, model: Tax3D, ema, val_demos: list[dict], step
             "val_seconds": val_seconds}
 
 
+def replan(config: cfg.Config, record: dict, step: int, elapsed: float, step_seconds: float, val_seconds: float,
+           world: distributed.World, device: torch.device, out: Path) -> None:
+    """Shorten a --train.minutes run whose steps have run slower since its plan (every rank the same)."""
+    c = config.train
+    steps = replan_steps(c, step, elapsed, step_seconds, val_seconds)
+    if world.distributed:
+        steps = int(round(float(distributed.mean(world, torch.tensor([float(steps)], device=device))[0])))
+    if steps < c.steps:
+        record["replan"] = {"steps": steps, "planned": c.steps, "step_seconds": step_seconds,
+                            "val_seconds": val_seconds}
+        c.steps = steps
+        if world.main:
+            cfg.save(config, out / "config.json")
+            print(f"re-planned {steps} steps for {c.minutes:g} minutes ({step_seconds:.3f} s per step since the "
+                  f"plan)", file=sys.stderr)
+
+
 # --- the loop --------------------------------------------------------------------------------------------------
 
 
@@ -396,6 +421,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     share = world.share(c.batch_size)
     planning = step < plan_step(c)  # a --train.minutes run plans its steps then; any other run checks its length
     rate_from = None  # (step, time) from which the step rate is measured: after the first, slower steps
+    replan_from = None  # (step, time) after the plan, in the process that made it: timed again at the first validation
     while step < c.steps:
         if planning and rate_from is None and step >= min(10, plan_step(c) - 1):
             rate_from = (step, time.time())
@@ -439,11 +465,13 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
             record["plan"] = make_plan(config, model, ema, val_demos, step, time.time() - started,
                                        (time.time() - rate_from[1]) / (step - rate_from[0]), world, device)
             bar.total = c.steps
+            replan_from = (step, time.time())
             if world.main:
                 cfg.save(config, out / "config.json")
                 print(f"planned {c.steps} steps for {c.minutes:g} minutes ({record['plan']['step_seconds']:.3f} s "
                       f"per step, {record['plan']['val_seconds']:.1f} s per validation)", file=sys.stderr)
         if step % c.val_every == 0 or step == c.steps or out_of_time:
+            val_started = time.time()
             if world.main:
                 weights = (ema if ema is not None else model.net).state_dict()
                 if val_demos:
@@ -461,6 +489,11 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                 save_checkpoint(out, "last", model, weights, state)
                 bar.set_postfix(loss=f"{record['loss']:.4f}", val=f"{record.get('val_rmse', float('nan')):.3f}")
             distributed.barrier(world)
+            if replan_from is not None and replan_from[0] < step < c.steps and not out_of_time:
+                replan(config, record, step, time.time() - started,
+                       (val_started - replan_from[1]) / (step - replan_from[0]), time.time() - val_started, world,
+                       device, out)
+                bar.total, replan_from = c.steps, None
         if world.main:
             record["seconds"] = round(time.time() - started, 2)
             log.write(json.dumps(record) + "\n")
