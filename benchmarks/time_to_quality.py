@@ -16,6 +16,10 @@ val_coverage_rmse: each cloth's goals against the samples of all its demos, appe
 
 `--collect` (repeatable) trains nothing: it writes the same JSON for runs already made by `tax3d train
 --train.minutes M` (each run's folder and the command that made it), such as a finalist trained alone.
+
+The runs take the cores this program may use, one each in order: two programs started side by side (two tasks, or
+one run each) must be given cores of their own, `taskset -c 0 python benchmarks/time_to_quality.py ...` beside
+`taskset -c 1 ...`, or both would pin their first run to the same core.
 """
 
 from __future__ import annotations
