@@ -40,6 +40,20 @@ def test_keep_summary_drops_the_episodes(tmp_path):
     assert "episodes" not in data and data["summary"]["splits"]["ood"]["coverage_rmse"] == 2.9
 
 
+def test_keep_summary_keeps_the_splits_asked_for(tmp_path):
+    run = tmp_path / "eval-cd"
+    run.mkdir()
+    (run / "results.json").write_text(json.dumps(summary(0.5, 3.0, 2.9, 1.1)))
+    script = [sys.executable, str(ROOT / "scripts" / "keep_summary.py"), str(run)]
+    done = subprocess.run([*script, str(tmp_path / "cd.json"), "--splits", "unseen,ood"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    kept = json.loads((tmp_path / "cd.json").read_text())["summary"]
+    assert list(kept["splits"]) == ["unseen", "ood"] and kept["kept_splits"] == "unseen,ood"
+    done = subprocess.run([*script, str(tmp_path / "bad.json"), "--splits", "unseen,test"], capture_output=True, text=True)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "test" in done.stderr
+    assert not (tmp_path / "bad.json").exists()
+
+
 def test_keep_summary_bad_input(tmp_path):
     done = subprocess.run([sys.executable, str(ROOT / "scripts" / "keep_summary.py"), str(tmp_path / "nope"),
                            str(tmp_path / "out.json")], capture_output=True, text=True)
