@@ -211,8 +211,16 @@ class TrainingPage(MeasurementPage):
         link = os.path.relpath(plot, page.parent)
         commands = [f"- {name}, {run}: `{result['command']}`" for name, study, _ in self.studies
                     for run, result in study["runs"].items()]
-        measured = "; ".join(f"[{rel}]({os.path.relpath((self.root / rel).resolve(), page.parent)}) on "
-                             f"{study['machine']}, {study['date']}" for _, study, rel in self.studies)
+        # consecutive studies made on the same machine and day share one mention of them
+        groups: list[tuple[tuple[str, str], list[str]]] = []
+        for _, study, rel in self.studies:
+            where = (study["machine"], study["date"])
+            file = f"[{rel}]({os.path.relpath((self.root / rel).resolve(), page.parent)})"
+            if groups and groups[-1][0] == where:
+                groups[-1][1].append(file)
+            else:
+                groups.append((where, [file]))
+        measured = "; ".join(f"{', '.join(links)} on {machine}, {date}" for (machine, date), links in groups)
         lines = [self.fill(self.spec["verdict"]), "", *self.table(), "", f"![validation RMSE against minutes]({link})",
                  "", f"Measured by `benchmarks/time_to_quality.py`: {measured}; built by `tax3d results {self.name}`.",
                  "", *self.notes("study"), *fold("The command of each run", commands)]
