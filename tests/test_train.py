@@ -218,50 +218,49 @@ def test_validation_reports_the_error_at_the_grasped_vertices():
         pytest.approx(1.0)
 
 
-def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeypatch):
-    """--train.minutes measures the step rate, fixes train.steps and val_every (recorded in config.json and the
-    log) and a resumed run continues the same plan."""
-    clock = {"now": 1000.0}
-    monkeypatch.setattr(train.time, "time", lambda: clock["now"])
-    step_loss = train.TrainingLoss.forward
-
-    def timed(self, *a):
-        clock["now"] += 0.5  # every step takes half a second of this fake clock
-        return step_loss(self, *a)
-
-    monkeypatch.setattr(train.TrainingLoss, "forward", timed)
-    out = tmp_path / "planned"
-    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
-                 "--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]) == 0
-    log = read_log(out)
-    plan = next(r["plan"] for r in log if "plan" in r)
-    # 30 s at 0.5 s a step, validations taking no time on this clock: 60 steps in all
-    assert plan["steps"] == 60 and plan["val_every"] == 20 and plan["step_seconds"] == pytest.approx(0.5)
-    assert cfg.load(out / "config.json").train.steps == 60 and log[-1]["step"] == 60
-    assert [r["step"] for r in log if "val_rmse" in r] == [20, 40, 60]
-    assert all(r["lr"] <= plan_lr for r, plan_lr in zip(log[10:], [r["lr"] for r in log[9:]]))
-    # more minutes on resume do not re-plan a run that is already planned
-    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
-                 "--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]) == 0
-    assert read_log(out)[-1]["step"] == 60
-
-
-def test_minutes_plan_is_shortened_when_steps_slow_down(tmp_path, demos, monkeypatch):
-    """Timed again at the first validation, a plan whose steps have slowed since the warm-up is shortened to end on
-    time (recorded in config.json and the log line `replan`), and its learning rate still never rises."""
+def fake_step_clock(monkeypatch, seconds) -> None:
+    """train's clock advances by seconds(n) at the n-th step (1-based) and stands still otherwise."""
     clock = {"now": 1000.0, "steps": 0}
     monkeypatch.setattr(train.time, "time", lambda: clock["now"])
     step_loss = train.TrainingLoss.forward
 
     def timed(self, *a):
         clock["steps"] += 1
-        clock["now"] += 0.5 if clock["steps"] <= 12 else 1.0  # twice as slow after the plan at step 12
+        clock["now"] += seconds(clock["steps"])
         return step_loss(self, *a)
 
     monkeypatch.setattr(train.TrainingLoss, "forward", timed)
+
+
+PLANNED = ["--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]
+
+
+def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeypatch):
+    """--train.minutes measures the step rate, fixes train.steps and val_every (recorded in config.json and the
+    log) and a resumed run continues the same plan."""
+    fake_step_clock(monkeypatch, lambda n: 0.5)  # every step takes half a second of this fake clock
+    out = tmp_path / "planned"
+    args = ["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos), *PLANNED]
+    assert main(args) == 0
+    log = read_log(out)
+    plan = next(r["plan"] for r in log if "plan" in r)
+    # 30 s at 0.5 s a step, validations taking no time on this clock: 60 steps in all
+    assert plan["steps"] == 60 and plan["val_every"] == 20 and plan["step_seconds"] == pytest.approx(0.5)
+    assert cfg.load(out / "config.json").train.steps == 60 and log[-1]["step"] == 60
+    assert [r["step"] for r in log if "val_rmse" in r] == [20, 40, 60] and not any("replan" in r for r in log)
+    assert all(r["lr"] <= plan_lr for r, plan_lr in zip(log[10:], [r["lr"] for r in log[9:]]))
+    # more minutes on resume do not re-plan a run that is already planned
+    assert main(args) == 0
+    assert read_log(out)[-1]["step"] == 60
+
+
+def test_minutes_plan_is_shortened_when_steps_slow_down(tmp_path, demos, monkeypatch):
+    """Timed again at the first validation, a plan whose steps have slowed since the warm-up is shortened to end on
+    time (recorded in config.json and the log line `replan`), and its learning rate still never rises."""
+    fake_step_clock(monkeypatch, lambda n: 0.5 if n <= 12 else 1.0)  # twice as slow after the plan at step 12
     out = tmp_path / "slowed"
     assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
-                 "--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]) == 0
+                 *PLANNED]) == 0
     log = read_log(out)
     assert next(r["plan"] for r in log if "plan" in r)["steps"] == 60
     # at step 20, 6 + 8 s have passed: the 16 s left hold 16 steps of 1 s
