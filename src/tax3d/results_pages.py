@@ -11,6 +11,7 @@ task page's. The training study's declaration names the page it fills between `<
 from __future__ import annotations
 
 import io
+import itertools
 import json
 import os
 import re
@@ -212,15 +213,10 @@ class TrainingPage(MeasurementPage):
         commands = [f"- {name}, {run}: `{result['command']}`" for name, study, _ in self.studies
                     for run, result in study["runs"].items()]
         # consecutive studies made on the same machine and day share one mention of them
-        groups: list[tuple[tuple[str, str], list[str]]] = []
-        for _, study, rel in self.studies:
-            where = (study["machine"], study["date"])
-            file = f"[{rel}]({os.path.relpath((self.root / rel).resolve(), page.parent)})"
-            if groups and groups[-1][0] == where:
-                groups[-1][1].append(file)
-            else:
-                groups.append((where, [file]))
-        measured = "; ".join(f"{', '.join(links)} on {machine}, {date}" for (machine, date), links in groups)
+        measured = "; ".join(
+            ", ".join(f"[{rel}]({os.path.relpath((self.root / rel).resolve(), page.parent)})" for _, _, rel in same)
+            + f" on {machine}, {date}"
+            for (machine, date), same in itertools.groupby(self.studies, lambda s: (s[1]["machine"], s[1]["date"])))
         lines = [self.fill(self.spec["verdict"]), "", *self.table(), "", f"![validation RMSE against minutes]({link})",
                  "", f"Measured by `benchmarks/time_to_quality.py`: {measured}; built by `tax3d results {self.name}`.",
                  "", *self.notes("study"), *fold("The command of each run", commands)]

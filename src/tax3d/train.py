@@ -135,16 +135,19 @@ def plan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: floa
     if c.validations > 0:
         steps = step + max(1, int((left - (c.validations - 1) * val_seconds) / step_seconds))
         return steps, max(1, -(-steps // c.validations))
-    per_step = step_seconds + val_seconds / c.val_every
-    return step + max(1, int(left / per_step)), c.val_every
+    return step + steps_between_validations(c, left, step_seconds, val_seconds), c.val_every
+
+
+def steps_between_validations(c: cfg.TrainConfig, seconds: float, step_seconds: float, val_seconds: float) -> int:
+    """The steps (at least one) that fit `seconds` with a validation every c.val_every steps."""
+    return max(1, int(seconds / (step_seconds + val_seconds / c.val_every)))
 
 
 def replan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: float, val_seconds: float) -> int:
     """The step count of a planned run timed again at its first validation: the steps that fit the minutes left at
     the rate measured since the plan, never more than planned, so the learning rate never rises."""
     left = 60.0 * c.minutes - elapsed - val_seconds
-    per_step = step_seconds + val_seconds / c.val_every
-    return min(c.steps, step + max(1, int(left / per_step)))
+    return min(c.steps, step + steps_between_validations(c, left, step_seconds, val_seconds))
 
 
 # --- validation ------------------------------------------------------------------------------------------------
