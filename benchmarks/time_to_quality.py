@@ -49,7 +49,7 @@ def train_command(args, name: str, options: str) -> list[str]:
 def summary(out: Path, options: str, command: list[str]) -> dict:
     """One run's curve from its log.jsonl: every validation, with the mean of the training loss's mean term (`mse`)
     over the steps since the one before (train_mse: a falling train_mse beside a flat val_rmse is overfitting), and
-    the plan it made (and its shortening at the first validation, if any)."""
+    the plan it made (and its re-timing at the first validation, if any)."""
     records = read_log(out / "log.jsonl")
     plan = next((r["plan"] for r in records if "plan" in r), None)
     replan = next((r["replan"] for r in records if "replan" in r), None)

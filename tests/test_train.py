@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 
 import numpy as np
 import pytest
@@ -254,21 +255,36 @@ def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeyp
     assert read_log(out)[-1]["step"] == 60
 
 
-def test_minutes_plan_is_shortened_when_steps_slow_down(tmp_path, demos, monkeypatch):
-    """Timed again at the first validation, a plan whose steps have slowed since the warm-up is shortened to end on
-    time (recorded in config.json and the log line `replan`), and its learning rate still never rises."""
-    fake_step_clock(monkeypatch, lambda n: 0.5 if n <= 12 else 1.0)  # twice as slow after the plan at step 12
-    out = tmp_path / "slowed"
+@pytest.mark.parametrize("later, steps", [(1.0, 36), (0.25, 108)])
+def test_minutes_plan_is_timed_again_at_the_first_validation(tmp_path, demos, monkeypatch, later, steps):
+    """Timed again at the first validation, a plan whose steps have slowed (or sped up) since the warm-up is
+    shortened (or lengthened) to end on time, recorded in config.json and the log line `replan`; the decay goes on
+    from where it was, so the learning rate neither jumps nor rises."""
+    fake_step_clock(monkeypatch, lambda n: 0.5 if n <= 12 else later)  # the plan is made at step 12
+    out = tmp_path / "timed-again"
     assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
                  *PLANNED]) == 0
     log = read_log(out)
     assert next(r["plan"] for r in log if "plan" in r)["steps"] == 60
-    # at step 20, 6 + 8 s have passed: the 16 s left hold 16 steps of 1 s
+    # at step 20, 6 s + 8 steps have passed; the seconds left hold `steps` - 20 steps at the later rate
     replan = next(r["replan"] for r in log if "replan" in r)
-    assert replan["steps"] == 36 and replan["planned"] == 60 and replan["step_seconds"] == pytest.approx(1.0)
-    assert cfg.load(out / "config.json").train.steps == 36 and log[-1]["step"] == 36
+    assert replan["steps"] == steps and replan["planned"] == 60 and replan["step_seconds"] == pytest.approx(later)
+    saved = cfg.load(out / "config.json").train
+    assert saved.steps == steps and saved.replan_step == 20 and log[-1]["step"] == steps
     assert log[-1]["seconds"] == pytest.approx(30.0)
-    assert all(r["lr"] <= before["lr"] for before, r in zip(log[10:], log[11:]))
+    lrs = [r["lr"] for r in log]
+    assert all(b <= a for a, b in zip(lrs[10:], lrs[11:])) and lrs[-1] < 0.01 * max(lrs)
+    # no jump at the re-plan: the step after it changes the rate by no more than the one before it
+    assert abs(lrs[20] - lrs[19]) <= 1.5 * abs(lrs[19] - lrs[18])
+
+
+def test_a_replanned_decay_goes_on_from_its_progress():
+    c = cfg.TrainConfig(lr=1.0, warmup_steps=10, steps=110)
+    before = train.get_lr(60, c)  # half way: lr / 2
+    c.replan_progress, c.replan_step, c.steps = train.decay_progress(60, c), 60, 260
+    assert train.get_lr(60, c) == pytest.approx(before) == pytest.approx(0.5)
+    assert train.get_lr(160, c) == pytest.approx(0.5 * (1 + math.cos(math.pi * 0.75)))
+    assert train.get_lr(260, c) == pytest.approx(0.0, abs=1e-12) and train.get_lr(59, c) > before
 
 
 def test_default_preset_fits_the_machine_and_long_runs_are_told(tmp_path, demos, capsys, monkeypatch):

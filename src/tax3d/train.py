@@ -67,8 +67,16 @@ def get_lr(step: int, c: cfg.TrainConfig) -> float:
     """Linear warm-up to lr over warmup_steps, then a cosine decay to 0 at the last step (App. B.2)."""
     if step < c.warmup_steps:
         return c.lr * (step + 1) / c.warmup_steps
-    progress = (step - c.warmup_steps) / max(1, c.steps - c.warmup_steps)
-    return c.lr * 0.5 * (1.0 + math.cos(math.pi * min(progress, 1.0)))
+    return c.lr * 0.5 * (1.0 + math.cos(math.pi * min(decay_progress(step, c), 1.0)))
+
+
+def decay_progress(step: int, c: cfg.TrainConfig) -> float:
+    """How far the cosine decay is at `step` (0 at the warm-up's end, 1 at c.steps); a re-planned run goes on
+    linearly from its progress at the re-plan to 1 at its new last step."""
+    knee = getattr(c, "replan_step", 0)  # DP3's TrainConfig is never re-planned
+    if knee and step >= knee:
+        return c.replan_progress + (1.0 - c.replan_progress) * (step - knee) / max(1, c.steps - knee)
+    return (step - c.warmup_steps) / max(1, c.steps - c.warmup_steps)
 
 
 def ema_decay(step: int, decay: float) -> float:
@@ -145,9 +153,9 @@ def steps_between_validations(c: cfg.TrainConfig, seconds: float, step_seconds: 
 
 def replan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: float, val_seconds: float) -> int:
     """The step count of a planned run timed again at its first validation: the steps that fit the minutes left at
-    the rate measured since the plan, never more than planned, so the learning rate never rises."""
+    the rate measured since the plan, fewer or more than planned."""
     left = 60.0 * c.minutes - elapsed - val_seconds
-    return min(c.steps, step + steps_between_validations(c, left, step_seconds, val_seconds))
+    return step + steps_between_validations(c, left, step_seconds, val_seconds)
 
 
 # --- validation ------------------------------------------------------------------------------------------------
@@ -320,15 +328,16 @@ def make_plan(config: cfg.Config, model: Tax3D, ema, val_demos: list[dict], step
 
 def replan(config: cfg.Config, record: dict, step: int, elapsed: float, step_seconds: float, val_seconds: float,
            world: distributed.World, device: torch.device, out: Path) -> None:
-    """Shorten a --train.minutes run whose steps have run slower since its plan (every rank the same)."""
+    """Shorten or lengthen a --train.minutes run whose steps have run slower or faster since its plan, the decay
+    going on from where it is (every rank the same)."""
     c = config.train
     steps = replan_steps(c, step, elapsed, step_seconds, val_seconds)
     if world.distributed:
         steps = int(round(float(distributed.mean(world, torch.tensor([float(steps)], device=device))[0])))
-    if steps < c.steps:
+    if steps != c.steps:
         record["replan"] = {"steps": steps, "planned": c.steps, "step_seconds": step_seconds,
                             "val_seconds": val_seconds}
-        c.steps = steps
+        c.replan_progress, c.replan_step, c.steps = decay_progress(step, c), step, steps
         if world.main:
             cfg.save(config, out / "config.json")
             print(f"re-planned {steps} steps for {c.minutes:g} minutes ({step_seconds:.3f} s per step since the "
