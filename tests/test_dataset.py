@@ -238,6 +238,13 @@ def test_train_size_repeats_demos(demo_dir):
         DemoDataset(folder, "cd", train_size=0)
 
 
+def test_an_epoch_holds_every_demo_when_they_outnumber_train_size(demo_dir):
+    """More demos than train_size: an epoch still samples each of them, none left out of training."""
+    folder, _ = demo_dir
+    ds = DemoDataset(folder, "cd", num_action_points=NA, num_anchor_points=NB, train_size=2)
+    assert len(ds) == 3 and sorted(int(ds[i]["demo_index"]) for i in range(len(ds))) == [0, 1, 2]
+
+
 def test_determinism(demo_dir):
     folder, _ = demo_dir
     make = lambda seed: DemoDataset(folder, "cp", num_action_points=NA, num_anchor_points=NB, seed=seed)  # noqa: E731

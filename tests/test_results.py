@@ -205,6 +205,7 @@ def eight_times() -> dict:
     out = {**study({"v-256demos-60min": [(m * 10, 1.3 - m / 10) for m in range(1, 7)],
                     "v-512demos-60min": [(m * 9, 1.5 - m / 10) for m in range(1, 7)]}), "minutes": 60.0}
     out["runs"]["v-512demos-60min"].update(minutes=54.0, plan={"step_seconds": 0.625})
+    out["runs"]["v-512demos-60min"]["config"]["data"] = {"train_size": 400}
     return out
 
 
@@ -222,9 +223,16 @@ def grip_weights() -> dict:
 def finalist() -> dict:
     out = {**study({"v-grip16-512demos-120min": [(m * 17, 1.4 - m / 10) for m in range(1, 7)]}), "minutes": 120.0}
     run = out["runs"]["v-grip16-512demos-120min"]
-    run["config"]["data"], run["minutes"] = {"grip_weight": 16.0}, 104.0
+    run["config"]["data"], run["minutes"] = {"grip_weight": 16.0, "train_size": 400}, 104.0
     for point in run["curve"]:
         point["val_grip_error"] = point["val_rmse"] / 2
+    return out
+
+
+def multimodal_finalist(name: str) -> dict:
+    out = {**study({name: [(m * 17, 1.4 - m / 10) for m in range(1, 7)]}), "minutes": 110.0}
+    for point in out["runs"][name]["curve"]:
+        point["val_coverage_rmse"] = point["val_rmse"] - 0.25
     return out
 
 
@@ -321,6 +329,10 @@ def measurement_json() -> dict[str, dict]:
         "training/multimodal-ttq-11.json": multimodal_demos(),
         "evals/multimodal-cd-cpu-v-256demos-60min.json": policy(0.5, 0.25),
         "evals/multimodal-cd-cpu-85min.json": policy(0.25, 0.125),
+        "training/multimodal-ttq-16.json": multimodal_finalist("v-grip16-512demos-110min"),
+        "training/multimodal-ttq-16-rotate.json": multimodal_finalist("v-grip16-rotate-512demos-110min"),
+        "evals/multimodal-cd-cpu-v-grip16-512demos-110min.json": policy(0.625, 0.675),
+        "evals/multimodal-cd-cpu-v-grip16-rotate-512demos-110min.json": policy(0.55, 0.55),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
@@ -382,9 +394,10 @@ def test_measurement_pages_from_fixture_json(measured):
         in training and training.count("on fixture machine, 2026-02-03") == 1  # one mention for one machine and day
     # the multimodal study stays out of the unimodal table (its JSON is not a ttq-*.json) but feeds its note
     assert "| ttq-11" not in training and "multimodal-ttq-11" not in training.split("**Half an hour")[0]
-    assert ("The smaller set's run repeats the study above (0.700 against 0.900). The larger set's run ends at 0.900 "
-            "after 5,400 steps, where the other stood at 0.800 by step 5,000. Its plan timed its first steps slower "
-            "(0.625 s against 0.500 s), so it ended after 54 minutes") in training
+    assert ("on the first `400` of a set twice as large (`--num 512`, beginning with it; see \"What the runs on the "
+            "largest sets saw\"). The larger set's run ends at 0.900 after 5,400 steps, where the other stood at 0.800 "
+            "by step 5,000 (its plan, timed slower, ended after 54 minutes)") in training
+    assert "The policy with their last weights hangs 0.62 / 0.68 and 0.55 / 0.55 of `unseen` / `ood` cloths" in training
     assert ("W = 16 and 128 end at validation RMSE 0.900 and 1.000 (unweighted: 0.700), grip error 0.450 and 0.500. "
             "With their best weights the policy hangs 0.88 / 0.75 and 0.75 / 0.75 of `unseen` / `ood` cloths, "
             "against 0.62 / 0.50 unweighted.") in training

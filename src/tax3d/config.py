@@ -61,7 +61,7 @@ class DataConfig:
     num_action_points: Annotated[int, Positive] = 512
     num_anchor_points: Annotated[int, Positive] = 512
     train_size: Annotated[int, Positive] = 400
-    """samples per epoch (demos are repeated)"""
+    """samples per epoch (demos are repeated); an epoch holds every demo at least once"""
     target_scale: Annotated[float, Positive] = 1.0
     """the network's target is the variant's target times this"""
     subsets: Annotated[int, NonNegative] = 0

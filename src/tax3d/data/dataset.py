@@ -254,7 +254,8 @@ class DemoDataset(Dataset):
         self.epoch = int(epoch)
 
     def __len__(self) -> int:
-        return self.train_size if self.train_size is not None else len(self.demos)
+        # train_size samples an epoch (App. B.2), but never fewer than the demos: sample i is of demo i mod D
+        return max(self.train_size or 0, len(self.demos))
 
     def generator(self, index: int) -> torch.Generator:
         seed = np.random.SeedSequence([self.seed, self.epoch, index]).generate_state(1)[0]
