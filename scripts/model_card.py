@@ -179,6 +179,10 @@ def main() -> int:
                              "demo)")
     parser.add_argument("--official", type=Path, help="scripts/official_report.py's JSON: trained on the authors' data")
     args = parser.parse_args()
+    if args.first_demos < 0:
+        print(f"error: --first-demos {args.first_demos}: expected a positive number of demos (0: every demo)",
+              file=sys.stderr)
+        return 2
     try:
         config = load(args.checkpoint / "config.json", "data",
                       "a checkpoint folder whose config.json has a 'data' section")
@@ -189,10 +193,6 @@ def main() -> int:
             args.official, "samplers", "scripts/official_report.py's JSON")
     except Refused as err:
         print(f"error: {err}", file=sys.stderr)
-        return 2
-    if args.first_demos < 0:
-        print(f"error: --first-demos {args.first_demos}: expected a positive number of demos (0: every demo)",
-              file=sys.stderr)
         return 2
     write_text(args.checkpoint / "README.md", card(args.checkpoint, config, records, summary, args.data_command,
                                                    args.train_command, official, args.first_demos))
