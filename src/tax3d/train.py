@@ -65,18 +65,26 @@ class Args:
 
 def get_lr(step: int, c: cfg.TrainConfig) -> float:
     """Linear warm-up to lr over warmup_steps, then a cosine decay to 0 at the last step (App. B.2)."""
-    if step < c.warmup_steps:
-        return c.lr * (step + 1) / c.warmup_steps
-    return c.lr * 0.5 * (1.0 + math.cos(math.pi * min(decay_progress(step, c), 1.0)))
+    return cosine_lr(step, c.lr, c.warmup_steps, c.steps, c.replan_step, c.replan_progress)
 
 
 def decay_progress(step: int, c: cfg.TrainConfig) -> float:
-    """How far the cosine decay is at `step` (0 at the warm-up's end, 1 at c.steps); a re-planned run goes on
-    linearly from its progress at the re-plan to 1 at its new last step."""
-    knee = getattr(c, "replan_step", 0)  # DP3's TrainConfig is never re-planned
+    """How far the cosine decay is at `step` (0 at the warm-up's end, 1 at c.steps)."""
+    return cosine_progress(step, c.warmup_steps, c.steps, c.replan_step, c.replan_progress)
+
+
+def cosine_lr(step: int, lr: float, warmup_steps: int, steps: int, knee: int = 0, knee_progress: float = 0.0) -> float:
+    if step < warmup_steps:
+        return lr * (step + 1) / warmup_steps
+    progress = cosine_progress(step, warmup_steps, steps, knee, knee_progress)
+    return lr * 0.5 * (1.0 + math.cos(math.pi * min(progress, 1.0)))
+
+
+def cosine_progress(step: int, warmup_steps: int, steps: int, knee: int = 0, knee_progress: float = 0.0) -> float:
+    """A plan re-planned at step `knee` > 0 goes on linearly from its progress there to 1 at its new last step."""
     if knee and step >= knee:
-        return c.replan_progress + (1.0 - c.replan_progress) * (step - knee) / max(1, c.steps - knee)
-    return (step - c.warmup_steps) / max(1, c.steps - c.warmup_steps)
+        return knee_progress + (1.0 - knee_progress) * (step - knee) / max(1, steps - knee)
+    return (step - warmup_steps) / max(1, steps - warmup_steps)
 
 
 def ema_decay(step: int, decay: float) -> float:

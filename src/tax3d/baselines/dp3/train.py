@@ -32,7 +32,7 @@ from tax3d.config import apply_overrides
 from tax3d.devices import pick_device
 from tax3d.errors import UsageError
 from tax3d.options import OutputFolder
-from tax3d.train import STATE_NAME, find_last, get_lr, save_checkpoint, truncate_log
+from tax3d.train import STATE_NAME, cosine_lr, find_last, save_checkpoint, truncate_log
 
 ADAM_BETAS = (0.95, 0.999)  # DP3's optimiser settings (docs/dp3.md)
 EMA_POWER, EMA_MAX = 0.75, 0.9999  # DP3's EMA: decay 1 - (1 + step)^-0.75, capped
@@ -122,7 +122,7 @@ def run(args: Args) -> int:
     started = time.time() - elapsed
     while step < c.steps:
         batch, t, noise = step_batch(dataset, config, step, device)
-        lr = get_lr(step, c)
+        lr = cosine_lr(step, c.lr, c.warmup_steps, c.steps)
         for group in optimizer.param_groups:
             group["lr"] = lr
         loss = model.loss(batch, t, noise)
