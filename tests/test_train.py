@@ -278,6 +278,19 @@ def test_minutes_plan_is_timed_again_at_the_first_validation(tmp_path, demos, mo
     assert abs(lrs[20] - lrs[19]) <= 1.5 * abs(lrs[19] - lrs[18])
 
 
+def test_a_plan_is_timed_again_at_every_validation(tmp_path, demos, monkeypatch):
+    """Steps that speed up only after the first validation still lengthen the plan at the next one."""
+    fake_step_clock(monkeypatch, lambda n: 0.5 if n <= 20 else 0.25)
+    out = tmp_path / "timed-again-later"
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
+                 *PLANNED]) == 0
+    log = read_log(out)
+    assert [r["step"] for r in log if "replan" in r] == [40]  # at step 20 the rate is the plan's
+    # at step 40, 15 s have passed; the 15 s left hold 60 more steps at 0.25 s
+    assert log[-1]["step"] in (99, 100) and log[-1]["seconds"] == pytest.approx(30.0, abs=0.3)
+    assert cfg.load(out / "config.json").train.replan_step == 40
+
+
 def test_a_replanned_decay_goes_on_from_its_progress():
     c = cfg.TrainConfig(lr=1.0, warmup_steps=10, steps=110)
     before = train.get_lr(60, c)  # half way: lr / 2

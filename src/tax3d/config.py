@@ -97,7 +97,7 @@ class TrainConfig:
     validations: Annotated[int, NonNegative] = 0
     """with train.minutes: validate this many times, evenly over the planned steps (0: every val_every steps)"""
     replan_step: Annotated[int, NonNegative] = 0
-    """set by a --train.minutes run timed again at its first validation: from this step the cosine decay goes on
+    """set by a --train.minutes run timed again at a validation: from this step the cosine decay goes on
     from replan_progress to its end at train.steps, so the learning rate neither jumps nor rises (0: not re-planned)"""
     replan_progress: Annotated[float, NonNegative] = 0.0
     """the cosine decay's progress (0 to 1) at replan_step"""

@@ -160,8 +160,8 @@ def steps_between_validations(c: cfg.TrainConfig, seconds: float, step_seconds: 
 
 
 def replan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: float, val_seconds: float) -> int:
-    """The step count of a planned run timed again at its first validation: the steps that fit the minutes left at
-    the rate measured since the plan, fewer or more than planned."""
+    """The step count of a planned run timed again at a validation: the steps that fit the minutes left at the rate
+    measured since the plan or the validation before, fewer or more than planned."""
     left = 60.0 * c.minutes - elapsed - val_seconds
     return step + steps_between_validations(c, left, step_seconds, val_seconds)
 
@@ -441,7 +441,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     share = world.share(c.batch_size)
     planning = step < plan_step(c)  # a --train.minutes run plans its steps then; any other run checks its length
     rate_from = None  # (step, time) from which the step rate is measured: after the first, slower steps
-    replan_from = None  # (step, time) after the plan, in the process that made it: timed again at the first validation
+    replan_from = None  # (step, time) after the plan or the last validation, in the process that made the plan
     while step < c.steps:
         if planning and rate_from is None and step >= min(10, plan_step(c) - 1):
             rate_from = (step, time.time())
@@ -513,7 +513,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                 replan(config, record, step, time.time() - started,
                        (val_started - replan_from[1]) / (step - replan_from[0]), time.time() - val_started, world,
                        device, out)
-                bar.total, replan_from = c.steps, None
+                bar.total, replan_from = c.steps, (step, time.time())
         if world.main:
             record["seconds"] = round(time.time() - started, 2)
             log.write(json.dumps(record) + "\n")
