@@ -229,8 +229,9 @@ def finalist() -> dict:
     return out
 
 
-def multimodal_finalist(name: str) -> dict:
-    out = {**study({name: [(m * 17, 1.4 - m / 10) for m in range(1, 7)]}), "minutes": 110.0}
+def multimodal_finalist(name: str, validations: int = 6) -> dict:
+    out = {**study({name: [(m * 15, 1.4 - m / 10) for m in range(1, validations + 1)]}), "minutes": 110.0}
+    out["runs"][name]["minutes"] = 100.0
     for point in out["runs"][name]["curve"]:
         point["val_coverage_rmse"] = point["val_rmse"] - 0.25
     return out
@@ -333,6 +334,10 @@ def measurement_json() -> dict[str, dict]:
         "training/multimodal-ttq-16-rotate.json": multimodal_finalist("v-grip16-rotate-512demos-110min"),
         "evals/multimodal-cd-cpu-v-grip16-512demos-110min.json": policy(0.625, 0.675),
         "evals/multimodal-cd-cpu-v-grip16-rotate-512demos-110min.json": policy(0.55, 0.55),
+        "training/ttq-17.json": {**multimodal_finalist("v-grip16-all512-110min", 7), "val": ["v"]},
+        "evals/unimodal-cd-cpu-v-grip16-all512-110min.json": gripped_policy(0.875, 0.85, 0.2),
+        "training/multimodal-ttq-17.json": multimodal_finalist("v-grip16-all506-110min", 7),
+        "evals/multimodal-cd-cpu-v-grip16-all506-110min.json": policy(0.7, 0.675),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
