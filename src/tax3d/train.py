@@ -336,8 +336,8 @@ def make_plan(config: cfg.Config, model: Tax3D, ema, val_demos: list[dict], step
 
 def replan(config: cfg.Config, record: dict, step: int, elapsed: float, step_seconds: float, val_seconds: float,
            world: distributed.World, device: torch.device, out: Path) -> None:
-    """Shorten or lengthen a --train.minutes run whose steps have run slower or faster since its plan, the decay
-    going on from where it is (every rank the same)."""
+    """Shorten or lengthen a --train.minutes run whose steps have run slower or faster since its plan or its last
+    validation, the decay going on from where it is (every rank the same)."""
     c = config.train
     steps = replan_steps(c, step, elapsed, step_seconds, val_seconds)
     if world.distributed:
@@ -349,7 +349,7 @@ def replan(config: cfg.Config, record: dict, step: int, elapsed: float, step_sec
         if world.main:
             cfg.save(config, out / "config.json")
             print(f"re-planned {steps} steps for {c.minutes:g} minutes ({step_seconds:.3f} s per step since the "
-                  f"plan)", file=sys.stderr)
+                  f"last timing)", file=sys.stderr)
 
 
 # --- the loop --------------------------------------------------------------------------------------------------
