@@ -31,6 +31,9 @@ class ModelConfig:
     depth: Annotated[int, Positive] = 5
     num_heads: Annotated[int, Positive] = 4
     mlp_ratio: Annotated[float, Positive] = 4.0
+    mean_input: bool = False
+    """condition every block on the mean of the noised input x_t over the action points (not in the paper): the
+    global translation that separates a cloth's goals; docs/training.md measures it"""
 
 
 @dataclass

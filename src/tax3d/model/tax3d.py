@@ -39,7 +39,7 @@ def build_network(config: cfg.Config) -> nn.Module:
     if spec.scene:
         return DiTPointCloudScene(learn_sigma=learn_sigma, time_conditioning=spec.diffusion, **size)
     return DiTPointCloudCross(learn_sigma=learn_sigma, action_context=spec.action_context,
-                              time_conditioning=spec.diffusion, **size)
+                              time_conditioning=spec.diffusion, mean_input=m.mean_input and spec.diffusion, **size)
 
 
 class Tax3D(nn.Module):
