@@ -157,3 +157,60 @@ def test_time_to_quality_collect_keeps_the_training_loss_between_validations(tmp
     assert done.returncode == 0, done.stderr
     curve = json.loads((tmp_path / "out" / "time_to_quality.json").read_text())["runs"]["x"]["curve"]
     assert [(p["step"], p["minutes"], p["train_mse"]) for p in curve] == [(2, 0.5, 6.0), (4, 2.0, 2.0)]
+
+
+def load_script(name: str):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_precision_parts_splits_a_miss_into_offset_and_shape():
+    parts = load_script("precision_parts")
+    rng = np.random.default_rng(0)
+    goal = rng.normal(size=(50, 3))
+    other = goal + [2.0, 0.0, 0.0]  # the other hole's goal, 2 apart along x
+    shape = rng.normal(size=(50, 3)) * 0.1
+    shape -= shape.mean(0)
+    sample = goal + [0.5, 0.3, 0.0] + shape  # a quarter of the way toward the other goal, and off to the side
+    p = parts.sample_parts(sample, [other, goal])
+    assert abs(p["offset"] - np.hypot(0.5, 0.3)) < 1e-9 and abs(p["toward_other"] - 0.25) < 1e-9
+    assert abs(p["shape_rmse"] - np.sqrt((shape**2).sum(-1).mean())) < 1e-9
+    assert abs(p["precision_rmse"] ** 2 - p["offset"] ** 2 - p["shape_rmse"] ** 2) < 1e-9
+    # an ideal denoiser leans halfway at pure noise and not at all once the mean of x_t tells the holes apart
+    lean = lambda abar: parts.bayes_lean(2.7, abar, 256, np.random.default_rng(0))
+    assert abs(lean(1e-8) - 0.5) < 0.01 and lean(0.1) < 1e-3 and lean(1e-8) > lean(0.002) > lean(0.01)
+
+
+def test_precision_parts_refuses_bad_input(tmp_path):
+    script = [sys.executable, str(ROOT / "scripts" / "precision_parts.py")]
+    for args, says in ((["nope", "--data", str(tmp_path)], "no config.json"),
+                       ([str(ROOT / "checkpoints" / "tax3d-cd-multimodal"), "--data", str(tmp_path / "no")], "--data"),
+                       ([str(ROOT / "checkpoints" / "tax3d-cd-multimodal"), "--data", str(tmp_path), "--steps", "x"],
+                        "--steps")):
+        done = subprocess.run([*script, *args, "--out", str(tmp_path / "out.json")], capture_output=True, text=True)
+        assert done.returncode == 2 and done.stderr.count("\n") == 1 and says in done.stderr, done.stderr
+    assert not (tmp_path / "out.json").exists()
+
+
+def test_precision_parts_runs_on_a_checkpoint(tmp_path):
+    from tax3d.data.format import save_demo
+    from tests.conftest import synthetic_demo, tiny_model
+
+    tiny_model().save_pretrained(tmp_path / "ckpt")
+    base = synthetic_demo(0, n=40)
+    (tmp_path / "data").mkdir()
+    for i, shift in enumerate((0.0, 2.0)):  # one cloth, one pose, a goal for each hole
+        save_demo(tmp_path / "data" / f"demo_{i}.npz", dict(base, flow=base["flow"] + [shift, 0.0, 0.0]))
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "precision_parts.py"), str(tmp_path / "ckpt"),
+                           "--data", str(tmp_path / "data"), "--samples", "2", "--steps", "20,5",
+                           "--out", str(tmp_path / "parts.json")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    out = json.loads((tmp_path / "parts.json").read_text())
+    assert out["cloths"] == 1 and [row["t"] for row in out["from_noised_goal"]] == [5, 20]
+    s = out["samples"]
+    assert abs(s["precision_rmse"] ** 2 - s["offset"] ** 2 - s["shape_rmse"] ** 2) < 0.5 * s["precision_rmse"] ** 2
+    assert all(np.isfinite(v) for row in out["from_noised_goal"] for v in row.values())
