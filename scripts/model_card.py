@@ -83,7 +83,7 @@ def official_lines(report: dict, paper: dict | None) -> list[str]:
 
 
 def card(checkpoint: Path, config: dict, records: list[dict], summary: dict, data_command: str, train_command: str,
-         official: dict | None = None, first_demos: int = 0) -> str:
+         official: dict | None = None) -> str:
     plan = next((r["plan"] for r in records if "plan" in r), None)
     vals = [r for r in records if "val_rmse" in r]
     best = min(vals, key=lambda r: r["val_rmse"]) if vals else None
@@ -119,11 +119,11 @@ def card(checkpoint: Path, config: dict, records: list[dict], summary: dict, dat
         f"`{config['diffusion'].get('loss', 'epsilon')}`, prediction `{config['diffusion']['prediction']}`, "
         f"sampler {config['diffusion']['sample_steps']}-step {config['diffusion']['sampler'].upper()}"
         + (f"; the grasped vertices weigh {config['data']['grip_weight']:g} in the loss"
-           if config["data"].get("grip_weight", 1.0) != 1.0 else ""),
+           if config["data"].get("grip_weight", 1.0) != 1.0 else "")
+        + ("; its blocks also see the mean of the noised input (`model.mean_input`)"
+           if config["model"].get("mean_input") else ""),
         "- training demonstrations: " + ", ".join(f"`{folder}`" for folder in config["data"]["train"])
-        + " (made by the first command below)"
-        + (f"; the run sampled only the first {first_demos} of them (`data.train_size`: an epoch held that many "
-           "samples, sample i of demo i modulo the demos, before an epoch held every demo)" if first_demos else ""),
+        + " (made by the first command below)",
         *run_lines(config, records, plan),
     ]
     if best is not None and Path(summary.get("checkpoint", "")).name == "last" and vals[-1] is not best:
@@ -174,15 +174,8 @@ def main() -> int:
     parser.add_argument("--eval", type=Path, required=True)
     parser.add_argument("--data-command", required=True)
     parser.add_argument("--train-command", required=True)
-    parser.add_argument("--first-demos", type=int, default=0,
-                        help="the run sampled only this many of its first demos (trained before an epoch held every "
-                             "demo)")
     parser.add_argument("--official", type=Path, help="scripts/official_report.py's JSON: trained on the authors' data")
     args = parser.parse_args()
-    if args.first_demos < 0:
-        print(f"error: --first-demos {args.first_demos}: expected a positive number of demos (0: every demo)",
-              file=sys.stderr)
-        return 2
     try:
         config = load(args.checkpoint / "config.json", "data",
                       "a checkpoint folder whose config.json has a 'data' section")
@@ -195,7 +188,7 @@ def main() -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     write_text(args.checkpoint / "README.md", card(args.checkpoint, config, records, summary, args.data_command,
-                                                   args.train_command, official, args.first_demos))
+                                                   args.train_command, official))
     print(args.checkpoint / "README.md")
     return 0
 
