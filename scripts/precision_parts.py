@@ -1,14 +1,15 @@
-"""Where a checkpoint's samples miss a two-hole cloth's goals, and at which denoising step the miss arises; prints JSON.
+"""Where a checkpoint's samples miss a cloth's goals, and at which denoising step the miss arises; prints JSON.
 
     python scripts/precision_parts.py CHECKPOINT --data data/multimodal/unseen [--cloths 20] [--samples 5]
         [--steps 30,45,55,65,75,85,99] [--out FILE]
 
-Over the first --cloths cloths with a demonstration for each hole (same cloth, same anchor pose):
-- samples: the goals `predict` draws by default, each against the nearer of the cloth's two goals. Its RMSE (the
+Over the first --cloths cloths of the folder (a cloth's demos share its parameters and anchor pose: two on
+multimodal, one for each hole; one on unimodal):
+- samples: the goals `predict` draws by default, each against the nearest of the cloth's goals. Its RMSE (the
   precision RMSE of appendix C) splits into the offset (the distance between the sample's and the goal's centroids,
   a rigid translation) and the shape error (the RMSE left once that offset is removed): precision^2 = offset^2 +
-  shape^2. `toward_other`: the offset's share, along the line between the two goals' centroids, of the way to the
-  other goal (0: none, 0.5: the midpoint).
+  shape^2. `toward_other` (two goals only): the offset's share, along the line between the two goals' centroids,
+  of the way to the other goal (0: none, 0.5: the midpoint).
 - from_noised_goal: each demo's own goal noised to step t (the forward process), then the checkpoint's x_0 estimate
   at t (x0_rmse, toward_other), and the precision after denoising from there with the DDPM steps t-1 ... 0.
   `bayes_toward_other`: the share an ideal denoiser would lean toward the other goal when the only evidence of the
@@ -41,12 +42,14 @@ def lean(sample: np.ndarray, goal: np.ndarray, other: np.ndarray) -> float:
 
 
 def sample_parts(sample: np.ndarray, goals: list[np.ndarray]) -> dict:
-    """One sample (N, 3) against a cloth's two goals: precision, offset, shape error and lean toward the other."""
+    """One sample (N, 3) against a cloth's goals: precision, offset, shape error and, with two goals, the lean
+    toward the other (None with one)."""
     near = int(np.argmin([rmse(sample, g) for g in goals]))
-    goal, other = goals[near], goals[1 - near]
+    goal = goals[near]
     offset = (sample - goal).mean(0)
     return {"precision_rmse": rmse(sample, goal), "offset": float(np.linalg.norm(offset)),
-            "shape_rmse": rmse(sample - offset, goal), "toward_other": lean(sample, goal, other)}
+            "shape_rmse": rmse(sample - offset, goal),
+            "toward_other": lean(sample, goal, goals[1 - near]) if len(goals) == 2 else None}
 
 
 def bayes_lean(separation: float, abar: float, points: int, rng: np.random.Generator, draws: int = 20000) -> float:
@@ -57,7 +60,12 @@ def bayes_lean(separation: float, abar: float, points: int, rng: np.random.Gener
     return float(np.mean(1.0 / (1.0 + np.exp(log_ratio))))
 
 
-def cloth_pairs(folder: Path, count: int) -> list[list[dict]]:
+def mean(values: list) -> float | None:
+    kept = [v for v in values if v is not None]
+    return float(np.mean(kept)) if kept else None
+
+
+def cloths(folder: Path, count: int) -> list[list[dict]]:
     from tax3d.data.format import list_demos, load_demo
 
     cloths: dict[str, list[dict]] = {}
@@ -65,10 +73,10 @@ def cloth_pairs(folder: Path, count: int) -> list[list[dict]]:
         d = load_demo(path)
         key = json.dumps([d["deform_params"], np.round(d["rot"], 9).tolist(), np.round(d["trans"], 9).tolist()])
         cloths.setdefault(key, []).append(d)
-    return [g for g in cloths.values() if len(g) == 2][:count]
+    return [g for g in cloths.values() if len(g) <= 2][:count]
 
 
-def from_noised_goal(model, pair: list[dict], steps: list[int], generator, batch: int = 4) -> dict:
+def from_noised_goal(model, demos: list[dict], steps: list[int], generator, batch: int = 4) -> dict:
     import torch
 
     from tax3d.data.dataset import make_target, to_world
@@ -76,12 +84,12 @@ def from_noised_goal(model, pair: list[dict], steps: list[int], generator, batch
 
     diffusion, scale = model.diffusion, model.config.data.target_scale
     out = {t: {"x0_rmse": [], "toward_other": [], "precision_rmse": []} for t in steps}
-    for own in range(2):
-        demo = pair[own]
+    for own in range(len(demos)):
+        demo = demos[own]
         action = torch.as_tensor(demo["action_pc"], dtype=torch.float32)
         keep = farthest_point_sample(action, min(model.config.data.num_action_points, len(action)), start=generator)
         frames = model._frames(action[keep], demo["anchor_pc"], generator)
-        goals = [np.asarray(d["action_pc"] + d["flow"])[keep.numpy()] for d in pair]
+        goals = [np.asarray(d["action_pc"] + d["flow"])[keep.numpy()] for d in demos]
         x0 = make_target(torch.as_tensor(goals[own], dtype=torch.float32)[None],
                          {k: v[None] for k, v in frames.items()}, model.spec, scale).expand(batch, -1, -1)
         fn = model.model_fn(frames["action"][None].expand(batch, -1, -1), frames["anchor"][None].expand(batch, -1, -1))
@@ -93,7 +101,8 @@ def from_noised_goal(model, pair: list[dict], steps: list[int], generator, batch
                 if i == t:
                     for estimate in to_world(step["pred_xstart"], frames, model.spec, scale).numpy():
                         out[t]["x0_rmse"].append(rmse(estimate, goals[own]))
-                        out[t]["toward_other"].append(lean(estimate, goals[own], goals[1 - own]))
+                        if len(goals) == 2:
+                            out[t]["toward_other"].append(lean(estimate, goals[own], goals[1 - own]))
                 x = step["sample"]
             for final in to_world(x, frames, model.spec, scale).numpy():
                 out[t]["precision_rmse"].append(sample_parts(final, goals)["precision_rmse"])
@@ -103,7 +112,7 @@ def from_noised_goal(model, pair: list[dict], steps: list[int], generator, batch
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoint", type=Path)
-    parser.add_argument("--data", type=Path, required=True, help="a folder of demo_N.npz with two demos per cloth")
+    parser.add_argument("--data", type=Path, required=True, help="a folder of demo_N.npz")
     parser.add_argument("--cloths", type=int, default=20)
     parser.add_argument("--samples", type=int, default=5)
     parser.add_argument("--steps", default="30,45,55,65,75,85,99", help="the noise steps t to start from")
@@ -133,28 +142,28 @@ def main() -> int:
     if steps[0] < 0 or steps[-1] >= T:
         print(f"error: --steps {args.steps}: expected noise steps in [0, {T - 1}]", file=sys.stderr)
         return 2
-    pairs = cloth_pairs(args.data, args.cloths)
-    if not pairs:
-        print(f"error: --data {args.data}: no cloth with a demo for each of two holes", file=sys.stderr)
+    groups = cloths(args.data, args.cloths)
+    if not groups:
+        print(f"error: --data {args.data}: no demo_N.npz of a cloth with one or two goals", file=sys.stderr)
         return 2
     generator = torch.Generator().manual_seed(SEED)
     rng = np.random.default_rng(SEED)
     parts, noised, lean = [], {t: {} for t in steps}, {t: [] for t in steps}
     points = model.config.data.num_action_points
-    for index, pair in enumerate(pairs):
-        goals = [d["action_pc"] + d["flow"] for d in pair]
-        samples = model.predict(pair[0]["action_pc"], pair[0]["anchor_pc"], num_samples=args.samples, seed=index)
+    for index, demos in enumerate(groups):
+        goals = [d["action_pc"] + d["flow"] for d in demos]
+        samples = model.predict(demos[0]["action_pc"], demos[0]["anchor_pc"], num_samples=args.samples, seed=index)
         parts += [sample_parts(s, goals) for s in samples]
-        for t, values in from_noised_goal(model, pair, steps, generator).items():
+        for t, values in from_noised_goal(model, demos, steps, generator).items():
             for key, v in values.items():
                 noised[t].setdefault(key, []).extend(v)
-        separation = float(np.linalg.norm(goals[1].mean(0) - goals[0].mean(0)))
-        for t in steps:
-            lean[t].append(bayes_lean(separation, float(model.diffusion.alphas_cumprod[t]), points, rng))
-    mean = lambda values: float(np.mean(values))
+        if len(goals) == 2:
+            separation = float(np.linalg.norm(goals[1].mean(0) - goals[0].mean(0)))
+            for t in steps:
+                lean[t].append(bayes_lean(separation, float(model.diffusion.alphas_cumprod[t]), points, rng))
     out = {
         "command": "python " + " ".join(sys.argv), "date": provenance.today(), "machine": provenance.machine(),
-        "checkpoint": str(args.checkpoint), "cloths": len(pairs), "samples_per_cloth": args.samples,
+        "checkpoint": str(args.checkpoint), "cloths": len(groups), "samples_per_cloth": args.samples,
         "samples": {key: mean([p[key] for p in parts]) for key in parts[0]},
         "from_noised_goal": [{"t": t, **{k: mean(v) for k, v in noised[t].items()},
                               "bayes_toward_other": mean(lean[t])} for t in steps],

@@ -214,3 +214,11 @@ def test_precision_parts_runs_on_a_checkpoint(tmp_path):
     s = out["samples"]
     assert abs(s["precision_rmse"] ** 2 - s["offset"] ** 2 - s["shape_rmse"] ** 2) < 0.5 * s["precision_rmse"] ** 2
     assert all(np.isfinite(v) for row in out["from_noised_goal"] for v in row.values())
+    (tmp_path / "data" / "demo_1.npz").unlink()  # one goal, as on unimodal: no lean toward another
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "precision_parts.py"), str(tmp_path / "ckpt"),
+                           "--data", str(tmp_path / "data"), "--samples", "2", "--steps", "5"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert out["samples"]["toward_other"] is None and out["from_noised_goal"][0]["bayes_toward_other"] is None
+    assert out["from_noised_goal"][0]["x0_rmse"] > 0
