@@ -263,6 +263,15 @@ def policy(unseen: float, ood: float) -> dict:
         "unseen": {"episodes": 40, "success_rate": unseen}, "ood": {"episodes": 40, "success_rate": ood}}}}
 
 
+def set_policy(train: float, unseen: float, ood: float, precision: float) -> dict:
+    """A multimodal policy's summary with every split and its precision RMSE."""
+    out = policy(unseen, ood)
+    out["summary"]["splits"]["train"] = {"episodes": 40, "success_rate": train}
+    for split in out["summary"]["splits"].values():
+        split["precision_rmse"] = precision
+    return out
+
+
 def study(curves: dict[str, list[tuple[float, float]]]) -> dict:
     return {**PROV, "val": ["v"], "val_demos": 20, "val_samples": 2, "runs": {
         name: {"options": f"--opt {name}", "command": f"tax3d train --out runs/{name}", "steps_per_minute": 100.0,
@@ -337,7 +346,12 @@ def measurement_json() -> dict[str, dict]:
         "training/ttq-17.json": {**multimodal_finalist("v-grip16-all512-110min", 7), "val": ["v"]},
         "evals/unimodal-cd-cpu-v-grip16-all512-110min.json": gripped_policy(0.875, 0.85, 0.2),
         "training/multimodal-ttq-17.json": multimodal_finalist("v-grip16-all506-110min", 7),
-        "evals/multimodal-cd-cpu-v-grip16-all506-110min.json": policy(0.7, 0.675),
+        "evals/multimodal-cd-cpu-v-grip16-all506-110min.json": set_policy(0.65, 0.7, 0.675, 0.94),
+        "training/multimodal-ttq-18-mean.json": multimodal_finalist("v-grip16-mean-all506-95min", 2),
+        "training/multimodal-ttq-18-x0.json": {**multimodal_finalist("x0-grip16-all506-60min", 4), "minutes": 60.0},
+        "training/multimodal-ttq-18-cp.json": multimodal_finalist("cp-grip16-all506-100min"),
+        "evals/multimodal-cd-cpu-x0-grip16-all506-60min.json": set_policy(0.875, 0.8, 0.7, 0.55),
+        "evals/multimodal-cp-cpu-v-grip16-all506-100min.json": set_policy(0.4, 0.425, 0.55, 1.1),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
