@@ -18,7 +18,7 @@ import numpy as np
 
 from tax3d.atomic import write_text
 from tax3d import provenance
-from tax3d.data.format import list_demos, load_demo
+from tax3d.data.format import cloth_groups
 from tax3d.metrics import rmse
 
 
@@ -34,12 +34,7 @@ def main() -> int:
         return 2
     out = {"command": "python " + " ".join(sys.argv), "date": provenance.today(), "splits": {}}
     for split in splits:
-        cloths: dict[str, list[np.ndarray]] = {}
-        for path in list_demos(args.data / split):
-            d = load_demo(path)
-            key = json.dumps([d["deform_params"], np.round(d["rot"], 9).tolist(), np.round(d["trans"], 9).tolist()])
-            cloths.setdefault(key, []).append(d["action_pc"] + d["flow"])
-        pairs = [g for g in cloths.values() if len(g) == 2]
+        pairs = [[d["action_pc"] + d["flow"] for d in g] for g in cloth_groups(args.data / split) if len(g) == 2]
         out["splits"][split] = {
             "cloths_with_both_goals": len(pairs),
             "goal_separation_rmse": float(np.mean([rmse(a, b) for a, b in pairs])) if pairs else None,

@@ -27,12 +27,9 @@ import numpy as np
 
 from tax3d import provenance
 from tax3d.atomic import write_text
+from tax3d.metrics import rmse
 
 SEED = 0
-
-
-def rmse(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.sqrt(((a - b) ** 2).sum(-1).mean()))
 
 
 def lean(sample: np.ndarray, goal: np.ndarray, other: np.ndarray) -> float:
@@ -47,8 +44,8 @@ def sample_parts(sample: np.ndarray, goals: list[np.ndarray]) -> dict:
     near = int(np.argmin([rmse(sample, g) for g in goals]))
     goal = goals[near]
     offset = (sample - goal).mean(0)
-    return {"precision_rmse": rmse(sample, goal), "offset": float(np.linalg.norm(offset)),
-            "shape_rmse": rmse(sample - offset, goal),
+    return {"precision_rmse": float(rmse(sample, goal)), "offset": float(np.linalg.norm(offset)),
+            "shape_rmse": float(rmse(sample - offset, goal)),
             "toward_other": lean(sample, goal, goals[1 - near]) if len(goals) == 2 else None}
 
 
@@ -63,17 +60,6 @@ def bayes_lean(separation: float, abar: float, points: int, rng: np.random.Gener
 def mean(values: list) -> float | None:
     kept = [v for v in values if v is not None]
     return float(np.mean(kept)) if kept else None
-
-
-def cloths(folder: Path, count: int) -> list[list[dict]]:
-    from tax3d.data.format import list_demos, load_demo
-
-    cloths: dict[str, list[dict]] = {}
-    for path in list_demos(folder):
-        d = load_demo(path)
-        key = json.dumps([d["deform_params"], np.round(d["rot"], 9).tolist(), np.round(d["trans"], 9).tolist()])
-        cloths.setdefault(key, []).append(d)
-    return [g for g in cloths.values() if len(g) <= 2][:count]
 
 
 def from_noised_goal(model, demos: list[dict], steps: list[int], generator, batch: int = 4) -> dict:
@@ -100,7 +86,7 @@ def from_noised_goal(model, demos: list[dict], steps: list[int], generator, batc
                 step = diffusion.p_sample(fn, x, torch.full((batch,), i, dtype=torch.long), generator=generator)
                 if i == t:
                     for estimate in to_world(step["pred_xstart"], frames, model.spec, scale).numpy():
-                        out[t]["x0_rmse"].append(rmse(estimate, goals[own]))
+                        out[t]["x0_rmse"].append(float(rmse(estimate, goals[own])))
                         if len(goals) == 2:
                             out[t]["toward_other"].append(lean(estimate, goals[own], goals[1 - own]))
                 x = step["sample"]
@@ -133,6 +119,7 @@ def main() -> int:
             return 2
     import torch
 
+    from tax3d.data.format import cloth_groups
     from tax3d.model.tax3d import Tax3D
 
     torch.set_num_threads(1)
@@ -142,7 +129,7 @@ def main() -> int:
     if steps[0] < 0 or steps[-1] >= T:
         print(f"error: --steps {args.steps}: expected noise steps in [0, {T - 1}]", file=sys.stderr)
         return 2
-    groups = cloths(args.data, args.cloths)
+    groups = [g for g in cloth_groups(args.data) if len(g) <= 2][:args.cloths]
     if not groups:
         print(f"error: --data {args.data}: no demo_N.npz of a cloth with one or two goals", file=sys.stderr)
         return 2

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 import os
 import pickle
 import re
@@ -203,6 +204,17 @@ def list_demos(folder: str | os.PathLike) -> list[Path]:
     if not files:
         raise DemoError(f"{folder}: no demo_N.npz files in this folder")
     return files
+
+
+def cloth_groups(folder: str | os.PathLike) -> list[list[dict]]:
+    """The demos of a folder grouped by cloth and anchor pose, in index order: a multimodal cloth's demos, one per
+    hole, share both (appendix C); a unimodal cloth has one."""
+    groups: dict[str, list[dict]] = {}
+    for path in list_demos(folder):
+        d = load_demo(path)
+        key = json.dumps([d["deform_params"], np.round(d["rot"], 9).tolist(), np.round(d["trans"], 9).tolist()])
+        groups.setdefault(key, []).append(d)
+    return list(groups.values())
 
 
 def is_valid_demo(path: str | os.PathLike) -> bool:
