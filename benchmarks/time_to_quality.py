@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 from tax3d import provenance
-from tax3d.atomic import write_text
+from tax3d.atomic import write_json
 from tax3d.checkpoint import read_log
 
 
@@ -87,10 +87,8 @@ def collect(runs: list[list[str]], out: Path) -> int:
               "val_demos": config["train"]["val_demos"], "val_samples": config["train"]["val_samples"],
               "machine": provenance.machine(), "date": provenance.today(),
               "wall_minutes": max(r["minutes"] for r in results.values()), "runs": results}
-    text = json.dumps(result, indent=1)
     out.mkdir(parents=True, exist_ok=True)
-    write_text(out / "time_to_quality.json", text + "\n")
-    print(text)
+    print(write_json(out / "time_to_quality.json", result, indent=1))
     return 0
 
 
@@ -145,9 +143,7 @@ def main() -> int:
         "date": provenance.today(), "wall_minutes": round((time.time() - started) / 60, 1),
         "runs": {name: summary(args.out / name, options, commands[name]) for name, options in args.run},
     }
-    text = json.dumps(result, indent=1)
-    write_text(args.out / "time_to_quality.json", text + "\n")
-    print(text)
+    print(write_json(args.out / "time_to_quality.json", result, indent=1))
     return 0
 
 

@@ -10,13 +10,12 @@ prediction's coverage and precision RMSE alike: what a regression that averages 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from tax3d.atomic import write_text
+from tax3d.atomic import write_json
 from tax3d import provenance
 from tax3d.data.format import cloth_groups
 from tax3d.metrics import rmse
@@ -39,10 +38,7 @@ def main() -> int:
             "cloths_with_both_goals": len(pairs),
             "goal_separation_rmse": float(np.mean([rmse(a, b) for a, b in pairs])) if pairs else None,
             "midpoint_rmse": float(np.mean([rmse((a + b) / 2, a) for a, b in pairs])) if pairs else None}
-    text = json.dumps(out, indent=2)
-    if args.out is not None:
-        write_text(args.out, text + "\n")
-    print(text)
+    print(write_json(args.out, out))
     return 0
 
 

@@ -19,14 +19,13 @@ multimodal, one for each hole; one on unimodal):
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from tax3d import provenance
-from tax3d.atomic import write_text
+from tax3d.atomic import write_json
 from tax3d.metrics import rmse
 
 SEED = 0
@@ -155,10 +154,7 @@ def main() -> int:
         "from_noised_goal": [{"t": t, **{k: mean(v) for k, v in noised[t].items()},
                               "bayes_toward_other": mean(lean[t])} for t in steps],
     }
-    text = json.dumps(out, indent=2)
-    if args.out is not None:
-        write_text(args.out, text + "\n")
-    print(text)
+    print(write_json(args.out, out))
     return 0
 
 

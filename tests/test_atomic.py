@@ -1,6 +1,8 @@
+import json
+
 import pytest
 
-from tax3d.atomic import atomic_write, write_text
+from tax3d.atomic import atomic_write, write_json, write_text
 
 
 def test_write_replaces_the_file(tmp_path):
@@ -23,3 +25,11 @@ def test_failed_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path):
         atomic_write(path, half_then_fail)
     assert path.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["a.txt"]
+
+
+def test_write_json_returns_the_text_and_writes_it_only_when_given_a_path(tmp_path):
+    text = write_json(None, {"a": [1, 2]})
+    assert json.loads(text) == {"a": [1, 2]} and list(tmp_path.iterdir()) == []
+    path = tmp_path / "out.json"
+    assert write_json(path, {"a": 1}, indent=1) == path.read_text().rstrip("\n")
+    assert path.read_text().endswith("}\n")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -29,6 +30,14 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
 
 def write_text(path: str | os.PathLike, text: str) -> Path:
     return atomic_write(path, lambda tmp: tmp.write_text(text))
+
+
+def write_json(path: str | os.PathLike | None, obj, indent: int = 2) -> str:
+    """The JSON text of obj, also written to path (a trailing newline added) unless path is None."""
+    text = json.dumps(obj, indent=indent)
+    if path is not None:
+        write_text(path, text + "\n")
+    return text
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
