@@ -208,12 +208,19 @@ class _PointDiT(nn.Module):
     blocks: nn.ModuleList
     final_layer: FinalLayer
 
-    def _make_conditioning(self, hidden_size: int, time_conditioning: bool) -> None:
-        self.hidden_size = hidden_size
+    def _setup(self, in_channels: int, hidden_size: int, num_heads: int, learn_sigma: bool) -> None:
+        """The sizes both networks share."""
+        self.in_channels, self.hidden_size, self.num_heads = in_channels, hidden_size, num_heads
+        self.learn_sigma = learn_sigma
+        # the output (3) + the variance interpolation v (3) when the variance is learned
+        self.out_channels = 2 * in_channels if learn_sigma else in_channels
+
+    def _make_conditioning(self, time_conditioning: bool) -> None:
+        """Made after the point encoders, so that a seed gives the weights it always gave."""
         self.time_conditioning = time_conditioning
         # Without time conditioning (regression variants RD/RP) the conditioning vector is zeros: SiLU(0) = 0,
         # so every adaLN Linear reduces to its bias, a learned constant shift/scale/gate per block.
-        self.t_embedder = TimestepEmbedder(hidden_size) if time_conditioning else None
+        self.t_embedder = TimestepEmbedder(self.hidden_size) if time_conditioning else None
         self.mean_embedder = None
 
     def conditioning(self, t: torch.Tensor | None, batch_size: int, like: torch.Tensor) -> torch.Tensor:
@@ -271,11 +278,7 @@ class DiTPointCloudCross(_PointDiT):
         mean_input: bool = False,
     ):
         super().__init__()
-        self.in_channels = in_channels
-        self.learn_sigma = learn_sigma
-        # epsilon (3) + variance interpolation v (3) when the variance is learned
-        self.out_channels = 2 * in_channels if learn_sigma else in_channels
-        self.num_heads = num_heads
+        self._setup(in_channels, hidden_size, num_heads, learn_sigma)
         self.action_context = action_context
 
         # Per-point encoders (Conv1d kernel 1 == a point-wise Linear): x 3 -> 64, action 3 -> 64, concatenated to
@@ -287,7 +290,7 @@ class DiTPointCloudCross(_PointDiT):
             self.x_embedder = nn.Linear(in_channels, hidden_size)
             self.action_embedder = None
         self.anchor_embedder = nn.Linear(in_channels, hidden_size)
-        self._make_conditioning(hidden_size, time_conditioning)
+        self._make_conditioning(time_conditioning)
         if mean_input:
             self.mean_embedder = MeanEmbedder(in_channels, hidden_size)
 
@@ -334,14 +337,11 @@ class DiTPointCloudScene(_PointDiT):
         time_conditioning: bool = True,
     ):
         super().__init__()
-        self.in_channels = in_channels
-        self.learn_sigma = learn_sigma
-        self.out_channels = 2 * in_channels if learn_sigma else in_channels
-        self.num_heads = num_heads
+        self._setup(in_channels, hidden_size, num_heads, learn_sigma)
 
         # [x_t, x_0] -> Conv1d(6 -> 128) in docs/reference.md, Model; a point-wise Linear here
         self.x_embedder = nn.Linear(2 * in_channels, hidden_size)
-        self._make_conditioning(hidden_size, time_conditioning)
+        self._make_conditioning(time_conditioning)
 
         self.blocks = nn.ModuleList([DiTSelfBlock(hidden_size, num_heads, mlp_ratio) for _ in range(depth)])
         self.final_layer = FinalLayer(hidden_size, self.out_channels)

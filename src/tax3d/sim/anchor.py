@@ -36,46 +36,51 @@ def goal_position(rot_z: float, trans: np.ndarray) -> np.ndarray:
     return pose_points(GOAL_LOCAL[None], rot_z, trans)[0]
 
 
-def _cylinders(client: int, parts) -> int:
-    radii = [r * SCALE for r, _, _, _ in parts]
-    lengths = [length * SCALE for _, length, _, _ in parts]
-    centres = [[c * SCALE for c in centre] for _, _, centre, _ in parts]
-    orientations = [pybullet.getQuaternionFromEuler([0.0, np.deg2rad(deg), 0.0]) for *_, deg in parts]
+def fixed_cylinders(client: int, radii, lengths, centres, orientations, position, orientation) -> int:
+    """A fixed body of cylinders (radius, length, centre and quaternion in the body's frame) at a world pose."""
     kw = dict(radii=radii, lengths=lengths, physicsClientId=client)
     collision = pybullet.createCollisionShapeArray(
-        [pybullet.GEOM_CYLINDER] * len(parts),
+        [pybullet.GEOM_CYLINDER] * len(radii),
         collisionFramePositions=centres,
         collisionFrameOrientations=orientations,
         **kw,
     )
     visual = pybullet.createVisualShapeArray(
-        [pybullet.GEOM_CYLINDER] * len(parts),
+        [pybullet.GEOM_CYLINDER] * len(radii),
         visualFramePositions=centres,
         visualFrameOrientations=orientations,
-        rgbaColors=[[0.55, 0.4, 0.25, 1.0]] * len(parts),
+        rgbaColors=[[0.55, 0.4, 0.25, 1.0]] * len(radii),
         **kw,
     )
-    return collision, visual
+    body = pybullet.createMultiBody(
+        baseMass=0.0,
+        baseCollisionShapeIndex=collision,
+        baseVisualShapeIndex=visual,
+        basePosition=list(position),
+        baseOrientation=orientation,
+        physicsClientId=client,
+    )
+    # docs/reference.md, "HangProcCloth scene": rigid objects have friction 1 and restitution 0.
+    pybullet.changeDynamics(
+        body, -1, lateralFriction=1.0, spinningFriction=1.0, rollingFriction=1.0, restitution=0.0,
+        physicsClientId=client,
+    )  # fmt: skip
+    return body
 
 
 def load_anchor(client: int, rot_z: float = 0.0, trans=(0.0, 0.0, 0.0)) -> tuple[int, int]:
     """Create the hanger and the rod, fixed, under the anchor pose; returns their body ids."""
     ids = []
     for parts, base in ((HANGER_PARTS, HANGER_POSITION), (ROD_PARTS, np.zeros(3))):
-        collision, visual = _cylinders(client, parts)
-        body = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=collision,
-            baseVisualShapeIndex=visual,
-            basePosition=pose_points(base[None], rot_z, trans)[0].tolist(),
-            baseOrientation=pybullet.getQuaternionFromEuler([0.0, 0.0, rot_z]),
-            physicsClientId=client,
-        )
-        pybullet.changeDynamics(
-            body, -1, lateralFriction=1.0, spinningFriction=1.0, rollingFriction=1.0, restitution=0.0,
-            physicsClientId=client,
-        )
-        ids.append(body)
+        ids.append(fixed_cylinders(
+            client,
+            radii=[r * SCALE for r, _, _, _ in parts],
+            lengths=[length * SCALE for _, length, _, _ in parts],
+            centres=[[c * SCALE for c in centre] for _, _, centre, _ in parts],
+            orientations=[pybullet.getQuaternionFromEuler([0.0, np.deg2rad(deg), 0.0]) for *_, deg in parts],
+            position=pose_points(base[None], rot_z, trans)[0].tolist(),
+            orientation=pybullet.getQuaternionFromEuler([0.0, 0.0, rot_z]),
+        ))  # fmt: skip
     return ids[0], ids[1]
 
 

@@ -46,22 +46,26 @@ def render_segmented_points(client: int, body_ids, size: int = IMAGE_SIZE) -> np
     return points.transpose(1, 0, 2)[keep.T]
 
 
+def render_canonical(load_bodies, with_floor: bool) -> np.ndarray:
+    """The bodies that load_bodies(client) creates at rot = 0, trans = 0, rendered alone (read-only points)."""
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        if with_floor:
+            add_floor(client)
+        points = render_segmented_points(client, load_bodies(client))
+    finally:
+        pybullet.disconnect(client)
+    points.setflags(write=False)
+    return points
+
+
 @functools.lru_cache(maxsize=4)
 def canonical_anchor_cloud(with_floor: bool) -> np.ndarray:
     """The hanger and rod rendered once at rot = 0, trans = 0.
 
     docs/reference.md, HangProcCloth scene: the camera moves with the anchor.
     """
-    client = pybullet.connect(pybullet.DIRECT)
-    try:
-        if with_floor:
-            add_floor(client)
-        ids = load_anchor(client)
-        points = render_segmented_points(client, ids)
-    finally:
-        pybullet.disconnect(client)
-    points.setflags(write=False)
-    return points
+    return render_canonical(load_anchor, with_floor)
 
 
 def anchor_cloud(rot_z: float, trans, with_floor: bool = True) -> np.ndarray:

@@ -7,8 +7,8 @@ import functools
 import numpy as np
 import pybullet
 
-from tax3d.sim.anchor import add_floor, pose_points
-from tax3d.sim.camera import render_segmented_points
+from tax3d.sim.anchor import fixed_cylinders, pose_points
+from tax3d.sim.camera import render_canonical
 
 # docs/reference.md, "HangBag": body poses, world units.
 POLE_POSITION, POLE_EULER = (0.0, 0.0, 5.0), (np.pi / 2, 0.0, 0.0)
@@ -42,39 +42,16 @@ def goal_position(rot_z: float, trans) -> np.ndarray:
 
 
 def _body(client: int, parts, position, euler, rot_z: float, trans) -> int:
-    radii = [r for r, *_ in parts]
-    lengths = [length for _, length, *_ in parts]
-    centres = [list(centre) for _, _, centre, _ in parts]
-    orientations = [pybullet.getQuaternionFromEuler(e) for *_, e in parts]
-    kw = dict(radii=radii, lengths=lengths, physicsClientId=client)
-    collision = pybullet.createCollisionShapeArray(
-        [pybullet.GEOM_CYLINDER] * len(parts),
-        collisionFramePositions=centres,
-        collisionFrameOrientations=orientations,
-        **kw,
-    )
-    visual = pybullet.createVisualShapeArray(
-        [pybullet.GEOM_CYLINDER] * len(parts),
-        visualFramePositions=centres,
-        visualFrameOrientations=orientations,
-        rgbaColors=[[0.55, 0.4, 0.25, 1.0]] * len(parts),
-        **kw,
-    )
     # PyBullet's Euler angles compose as Rz(yaw) Ry(pitch) Rx(roll): the anchor's z-rotation adds to the yaw.
-    body = pybullet.createMultiBody(
-        baseMass=0.0,
-        baseCollisionShapeIndex=collision,
-        baseVisualShapeIndex=visual,
-        basePosition=pose_points(np.asarray(position)[None], rot_z, trans)[0].tolist(),
-        baseOrientation=pybullet.getQuaternionFromEuler([euler[0], euler[1], euler[2] + rot_z]),
-        physicsClientId=client,
+    return fixed_cylinders(
+        client,
+        radii=[r for r, *_ in parts],
+        lengths=[length for _, length, *_ in parts],
+        centres=[list(centre) for _, _, centre, _ in parts],
+        orientations=[pybullet.getQuaternionFromEuler(e) for *_, e in parts],
+        position=pose_points(np.asarray(position)[None], rot_z, trans)[0].tolist(),
+        orientation=pybullet.getQuaternionFromEuler([euler[0], euler[1], euler[2] + rot_z]),
     )
-    # docs/reference.md, "HangProcCloth scene": rigid objects have friction 1 and restitution 0.
-    pybullet.changeDynamics(
-        body, -1, lateralFriction=1.0, spinningFriction=1.0, rollingFriction=1.0, restitution=0.0,
-        physicsClientId=client,
-    )  # fmt: skip
-    return body
 
 
 def load_hook(client: int, rot_z: float = 0.0, trans=(0.0, 0.0, 0.0)) -> tuple[int, int]:
@@ -87,16 +64,7 @@ def load_hook(client: int, rot_z: float = 0.0, trans=(0.0, 0.0, 0.0)) -> tuple[i
 @functools.lru_cache(maxsize=4)
 def canonical_hook_cloud(with_floor: bool) -> np.ndarray:
     """The hook and pole rendered once at rot = 0, trans = 0 with the HangProcCloth camera, like the hanger."""
-    client = pybullet.connect(pybullet.DIRECT)
-    try:
-        if with_floor:
-            add_floor(client)
-        ids = load_hook(client)
-        points = render_segmented_points(client, ids)
-    finally:
-        pybullet.disconnect(client)
-    points.setflags(write=False)
-    return points
+    return render_canonical(load_hook, with_floor)
 
 
 def hook_cloud(rot_z: float, trans, with_floor: bool = True) -> np.ndarray:
