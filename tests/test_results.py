@@ -351,6 +351,9 @@ def measurement_json() -> dict[str, dict]:
         "training/multimodal-ttq-18-x0.json": {**multimodal_finalist("x0-grip16-all506-60min", 4), "minutes": 60.0},
         "training/multimodal-ttq-18-cp.json": multimodal_finalist("cp-grip16-all506-100min"),
         "evals/multimodal-cd-cpu-x0-grip16-all506-60min.json": set_policy(0.875, 0.8, 0.7, 0.55),
+        "training/ttq-19.json": {**multimodal_finalist("x0-grip16-60min"), "minutes": 60.0},
+        "training/multimodal-ttq-19.json": {**multimodal_finalist("x0-grip16-all506-85min"), "minutes": 85.0},
+        "evals/multimodal-cd-cpu-x0-grip16-all506-85min.json": set_policy(0.9, 0.875, 0.675, 0.45),
         "evals/multimodal-cp-cpu-v-grip16-all506-100min.json": set_policy(0.4, 0.425, 0.55, 1.1),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
