@@ -45,9 +45,10 @@ class DiffusionConfig:
     prediction: Literal["epsilon", "sample"] = "epsilon"
     """what the network outputs: the noise (the paper) or the clean target x_0, turned into the noise
     estimate eps = (x_t / sqrt(abar_t) - x_0) / sqrt(1 / abar_t - 1) so that loss and samplers are unchanged"""
-    loss: Literal["epsilon", "x0", "v", "min_snr"] = "epsilon"
+    loss: Literal["epsilon", "x0", "v", "min_snr", "v_capped"] = "epsilon"
     """the mean term of the loss: the epsilon MSE (the paper's: the x_0 error weighted by SNR(t)), or the x_0 MSE
-    weighted by 1 (x0), SNR(t) + 1 (v) or min(SNR(t), 5) (min_snr); docs/training.md measures them"""
+    weighted by 1 (x0), SNR(t) + 1 (v), min(SNR(t), 5) (min_snr) or min(SNR(t) + 1, 5) (v_capped);
+    docs/training.md measures them"""
     sample_steps: Annotated[int, Positive] = 100
     """denoising steps at prediction: fewer than num_timesteps respaces the schedule"""
     sampler: Literal["ddpm", "ddim"] = "ddpm"

@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 ModelFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
-LOSSES = ("epsilon", "x0", "v", "min_snr")
+LOSSES = ("epsilon", "x0", "v", "min_snr", "v_capped")
 
 
 #################################################################################
@@ -239,10 +239,11 @@ class GaussianDiffusion:
 
     def x0_loss_weight(self, t: torch.Tensor) -> torch.Tensor:
         """w(t) of the mean term, written as w(t) times the MSE of the implied x_0 (Hang et al. 2023, Min-SNR):
-        epsilon: SNR(t) (the epsilon MSE); x0: 1; v: SNR(t) + 1 (the velocity MSE); min_snr: min(SNR(t), gamma)."""
+        epsilon: SNR(t) (the epsilon MSE); x0: 1; v: SNR(t) + 1 (the velocity MSE); min_snr: min(SNR(t), gamma);
+        v_capped: min(SNR(t) + 1, gamma), the v weighting capped so the noisiest steps keep 1/gamma of the most."""
         snr = torch.from_numpy(self.snr).to(t.device)[t]
         weights = {"epsilon": snr, "x0": torch.ones_like(snr), "v": snr + 1.0,
-                   "min_snr": snr.clamp(max=self.min_snr_gamma)}
+                   "min_snr": snr.clamp(max=self.min_snr_gamma), "v_capped": (snr + 1.0).clamp(max=self.min_snr_gamma)}
         return weights[self.loss]
 
     def training_losses(self, model_fn: ModelFn, x_start: torch.Tensor, t: torch.Tensor,
