@@ -351,7 +351,8 @@ def measurement_json() -> dict[str, dict]:
         "training/multimodal-ttq-18-x0.json": {**multimodal_finalist("x0-grip16-all506-60min", 4), "minutes": 60.0},
         "training/multimodal-ttq-18-cp.json": multimodal_finalist("cp-grip16-all506-100min"),
         "evals/multimodal-cd-cpu-x0-grip16-all506-60min.json": set_policy(0.875, 0.8, 0.7, 0.55),
-        "training/ttq-19.json": {**multimodal_finalist("x0-grip16-60min"), "minutes": 60.0},
+        "training/ttq-19.json": {**study({"x0-grip16-60min": [(m * 10, 1.4 - m / 10) for m in range(1, 7)]}),
+                                 "minutes": 60.0},
         "training/ttq-20.json": {**study({name: [(m * 4, 1.4 - m / 10) for m in range(1, 8)]
                                           for name in ("v-grip16-30min", "vcap5-grip16-30min")}), "minutes": 30.0},
         "training/multimodal-ttq-19.json": {**multimodal_finalist("x0-grip16-all506-85min"), "minutes": 85.0},
