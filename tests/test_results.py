@@ -358,6 +358,11 @@ def measurement_json() -> dict[str, dict]:
         "training/multimodal-ttq-19.json": {**multimodal_finalist("x0-grip16-all506-85min"), "minutes": 85.0},
         "evals/multimodal-cd-cpu-x0-grip16-all506-85min.json": set_policy(0.9, 0.875, 0.675, 0.45),
         "evals/multimodal-cp-cpu-v-grip16-all506-100min.json": set_policy(0.4, 0.425, 0.55, 1.1),
+        "training/multimodal-ttq-21.json": {**multimodal_finalist("x0-grip16-all506-110min", 8), "runs": {
+            name: multimodal_finalist(name, 8)["runs"][name]
+            for name in ("x0-grip16-all506-110min", "vcap-grip16-all506-110min")}},
+        "evals/multimodal-cd-cpu-x0-grip16-all506-110min.json": set_policy(0.925, 0.925, 0.825, 0.45),
+        "evals/multimodal-cd-cpu-vcap-grip16-all506-110min.json": set_policy(0.95, 0.875, 0.8, 0.4),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
