@@ -3,10 +3,10 @@
     python scripts/model_card.py checkpoints/tax3d-cd-unimodal --log docs/results/training/RUN-log.json \
         --eval docs/results/evals/NAME.json --data-command "..." --train-command "..."
 
---log is a run's log.jsonl, or a kept JSON `{"records": [...]}` of its plan, validation and last lines (left out for a
-run whose log was not kept: the card then says so); --eval a kept `tax3d eval` summary. The card says what the
-checkpoint is for, how it was made and how well it does, beside the paper's success and RMSE for the same task and
-variant (docs/results/paper.toml).
+--log is a run's log.jsonl, or a kept JSON `{"records": [...]}` of its plan, validation and last lines
+(scripts/keep_log.py; left out for a run whose log was not kept: the card then says so); --eval a kept `tax3d eval`
+summary. The card says what the checkpoint is for, how it was made and how well it does, beside the paper's success and
+RMSE for the same task and variant (docs/results/paper.toml).
 
     python scripts/model_card.py checkpoints/tax3d-cd-official-simple --official docs/results/official_val.json ...
 

@@ -229,11 +229,13 @@ def finalist() -> dict:
     return out
 
 
-def multimodal_finalist(name: str, validations: int = 6) -> dict:
-    out = {**study({name: [(m * 15, 1.4 - m / 10) for m in range(1, validations + 1)]}), "minutes": 110.0}
-    out["runs"][name]["minutes"] = 100.0
-    for point in out["runs"][name]["curve"]:
-        point["val_coverage_rmse"] = point["val_rmse"] - 0.25
+def multimodal_finalist(name: str | tuple[str, ...], validations: int = 6) -> dict:
+    names = (name,) if isinstance(name, str) else name
+    out = {**study({n: [(m * 15, 1.4 - m / 10) for m in range(1, validations + 1)] for n in names}), "minutes": 110.0}
+    for n in names:
+        out["runs"][n]["minutes"] = 100.0
+        for point in out["runs"][n]["curve"]:
+            point["val_coverage_rmse"] = point["val_rmse"] - 0.25
     return out
 
 
@@ -358,9 +360,8 @@ def measurement_json() -> dict[str, dict]:
         "training/multimodal-ttq-19.json": {**multimodal_finalist("x0-grip16-all506-85min"), "minutes": 85.0},
         "evals/multimodal-cd-cpu-x0-grip16-all506-85min.json": set_policy(0.9, 0.875, 0.675, 0.45),
         "evals/multimodal-cp-cpu-v-grip16-all506-100min.json": set_policy(0.4, 0.425, 0.55, 1.1),
-        "training/multimodal-ttq-21.json": {**multimodal_finalist("x0-grip16-all506-110min", 8), "runs": {
-            name: multimodal_finalist(name, 8)["runs"][name]
-            for name in ("x0-grip16-all506-110min", "vcap-grip16-all506-110min")}},
+        "training/multimodal-ttq-21.json": multimodal_finalist(
+            ("x0-grip16-all506-110min", "vcap-grip16-all506-110min"), 8),
         "evals/multimodal-cd-cpu-x0-grip16-all506-110min.json": set_policy(0.925, 0.925, 0.825, 0.45),
         "evals/multimodal-cd-cpu-vcap-grip16-all506-110min.json": set_policy(0.95, 0.875, 0.8, 0.4),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},

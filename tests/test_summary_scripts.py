@@ -1,5 +1,5 @@
-"""The scripts that keep the summaries `tax3d results` reads: keep_summary.py, mode_spread.py, val_curve.py,
-success_by_rmse.py, and the curves that benchmarks/time_to_quality.py keeps."""
+"""The scripts that keep the summaries `tax3d results` reads: keep_summary.py, keep_log.py, mode_spread.py,
+val_curve.py, success_by_rmse.py, and the curves that benchmarks/time_to_quality.py keeps."""
 
 from __future__ import annotations
 
@@ -52,6 +52,20 @@ def test_keep_summary_keeps_the_splits_asked_for(tmp_path):
     done = subprocess.run([*script, str(tmp_path / "bad.json"), "--splits", "unseen,test"], capture_output=True, text=True)
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "test" in done.stderr
     assert not (tmp_path / "bad.json").exists()
+
+
+def test_keep_log_keeps_the_plan_the_validations_and_the_last_step(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    lines = [{"step": 1, "loss": 2.0, "plan": {"steps": 5}}, {"step": 2, "loss": 1.5},
+             {"step": 3, "loss": 1.0, "val_rmse": 0.75}, {"step": 4, "loss": 0.9}, {"step": 5, "loss": 0.8}]
+    (run / "log.jsonl").write_text("".join(json.dumps(line) + "\n" for line in lines))
+    script = [sys.executable, str(ROOT / "scripts" / "keep_log.py")]
+    done = subprocess.run([*script, str(run), str(tmp_path / "log.json")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    kept = json.loads((tmp_path / "log.json").read_text())
+    assert [r["step"] for r in kept["records"]] == [1, 3, 5] and str(run / "log.jsonl") in kept["source"]
+    refused([str(ROOT / "scripts" / "keep_log.py"), str(tmp_path / "nope")], tmp_path / "bad.json", "log.jsonl")
 
 
 def test_keep_summary_bad_input(tmp_path):
