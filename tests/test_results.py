@@ -364,6 +364,12 @@ def measurement_json() -> dict[str, dict]:
             ("x0-grip16-all506-110min", "vcap-grip16-all506-110min"), 8),
         "evals/multimodal-cd-cpu-x0-grip16-all506-110min.json": set_policy(0.925, 0.925, 0.825, 0.45),
         "evals/multimodal-cd-cpu-vcap-grip16-all506-110min.json": set_policy(0.95, 0.875, 0.8, 0.4),
+        "training/ttq-22.json": {**study({name: [(m * 17, 1.4 - m / 10) for m in range(1, 8)]
+                                          for name in ("v-grip16-all512-120min", "vcap-grip16-all512-120min")}),
+                                 "minutes": 120.0},
+        "evals/unimodal-cd-cpu-v-grip16-all512-120min.json": finalist_policy(),
+        "evals/unimodal-cd-cpu-vcap-grip16-all512-120min.json": finalist_policy(),
+        "evals/unimodal-demo-goal-40ep.json": policy(0.9, 0.9)["summary"],
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
