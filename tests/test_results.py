@@ -229,6 +229,14 @@ def finalist() -> dict:
     return out
 
 
+def scaled_targets() -> dict:
+    """Study 23: the recipe at target scale 1 (five validations) and 0.4 (four), an hour each."""
+    out = {**study({"v-grip16-60min": [(m * 12, 1.4 - m / 10) for m in range(1, 6)],
+                    "v-grip16-scale04-60min": [(m * 15, 1.3 - m / 10) for m in range(1, 5)]}), "minutes": 60.0}
+    out["runs"]["v-grip16-scale04-60min"]["config"]["data"] = {"target_scale": 0.4}
+    return out
+
+
 def multimodal_finalist(name: str | tuple[str, ...], validations: int = 6) -> dict:
     names = (name,) if isinstance(name, str) else name
     out = {**study({n: [(m * 15, 1.4 - m / 10) for m in range(1, validations + 1)] for n in names}), "minutes": 110.0}
@@ -370,6 +378,9 @@ def measurement_json() -> dict[str, dict]:
         "evals/unimodal-cd-cpu-v-grip16-all512-120min.json": finalist_policy(),
         "evals/unimodal-cd-cpu-vcap-grip16-all512-120min.json": finalist_policy(),
         "evals/unimodal-demo-goal-40ep.json": policy(0.9, 0.9)["summary"],
+        "training/ttq-23.json": scaled_targets(),
+        "evals/unimodal-cd-cpu-v-grip16-60min-ttq23.json": gripped_policy(0.9, 0.8, 0.2),
+        "evals/unimodal-cd-cpu-v-grip16-scale04-60min.json": gripped_policy(0.85, 0.775, 0.2),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
         **{f"evals/unimodal-cd-cpu-95min-v-samplers-{split}.json": {
             **PROV, "command": "tax3d predict ... --compare-samplers", "samples": 5, "demos": 40, "steps": 100,
