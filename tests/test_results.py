@@ -237,6 +237,14 @@ def scaled_targets() -> dict:
     return out
 
 
+def bag_recipes() -> dict:
+    """Study 24 on HangBag: the unimodal recipe (eight validations) beside the epsilon loss (nine), an hour each."""
+    out = {**study({"v-grip16-60min": [(m * 7, 1.2 - m / 10) for m in range(1, 9)],
+                    "eps-60min": [(m * 6.5, 1.3 - m / 10) for m in range(1, 10)]}), "minutes": 60.0}
+    out["runs"]["v-grip16-60min"]["config"]["data"] = {"grip_weight": 16.0}
+    return out
+
+
 def multimodal_finalist(name: str | tuple[str, ...], validations: int = 6) -> dict:
     names = (name,) if isinstance(name, str) else name
     out = {**study({n: [(m * 15, 1.4 - m / 10) for m in range(1, validations + 1)] for n in names}), "minutes": 110.0}
@@ -379,6 +387,12 @@ def measurement_json() -> dict[str, dict]:
         "evals/unimodal-cd-cpu-vcap-grip16-all512-120min.json": finalist_policy(),
         "evals/unimodal-demo-goal-40ep.json": policy(0.9, 0.9)["summary"],
         "training/ttq-23.json": scaled_targets(),
+        "training/hangbag-ttq-24.json": bag_recipes(),
+        "training/ttq-25.json": {**study({name: [(m * 4, 1.4 - m / 10) for m in range(1, 8)]
+                                          for name in ("minsnr-grip16-30min", "vcap-grip16-30min")}), "minutes": 30.0},
+        "evals/hangbag-cd-cpu-v-grip16-60min.json": gripped_policy(0.9, 0.85, 0.1),
+        "evals/hangbag-cd-cpu-eps-60min.json": gripped_policy(0.8, 0.75, 0.2),
+        "evals/hangbag-cd-cpu-90min.json": finalist_policy(),
         "evals/unimodal-cd-cpu-v-grip16-60min-ttq23.json": gripped_policy(0.9, 0.8, 0.2),
         "evals/unimodal-cd-cpu-v-grip16-scale04-60min.json": gripped_policy(0.85, 0.775, 0.2),
         "training/unimodal-floor-20.json": {**PROV, "command": "tax3d predict ...", "rmse_mean_goal_baseline": 1.75},
