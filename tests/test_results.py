@@ -229,19 +229,11 @@ def finalist() -> dict:
     return out
 
 
-def scaled_targets() -> dict:
-    """Study 23: the recipe at target scale 1 (five validations) and 0.4 (four), an hour each."""
-    out = {**study({"v-grip16-60min": [(m * 12, 1.4 - m / 10) for m in range(1, 6)],
-                    "v-grip16-scale04-60min": [(m * 15, 1.3 - m / 10) for m in range(1, 5)]}), "minutes": 60.0}
-    out["runs"]["v-grip16-scale04-60min"]["config"]["data"] = {"target_scale": 0.4}
-    return out
-
-
-def bag_recipes() -> dict:
-    """Study 24 on HangBag: the unimodal recipe (eight validations) beside the epsilon loss (nine), an hour each."""
-    out = {**study({"v-grip16-60min": [(m * 7, 1.2 - m / 10) for m in range(1, 9)],
-                    "eps-60min": [(m * 6.5, 1.3 - m / 10) for m in range(1, 10)]}), "minutes": 60.0}
-    out["runs"]["v-grip16-60min"]["config"]["data"] = {"grip_weight": 16.0}
+def hour_pair(first: tuple[str, float, int], second: tuple[str, float, int], data: dict) -> dict:
+    """Two hour-long runs, each (name, minutes between validations, validations); the first run's config gets `data`."""
+    out = {**study({name: [(m * every, 1.3 - m / 10) for m in range(1, count + 1)]
+                    for name, every, count in (first, second)}), "minutes": 60.0}
+    out["runs"][first[0]]["config"]["data"] = data
     return out
 
 
@@ -386,8 +378,10 @@ def measurement_json() -> dict[str, dict]:
         "evals/unimodal-cd-cpu-v-grip16-all512-120min.json": finalist_policy(),
         "evals/unimodal-cd-cpu-vcap-grip16-all512-120min.json": finalist_policy(),
         "evals/unimodal-demo-goal-40ep.json": policy(0.9, 0.9)["summary"],
-        "training/ttq-23.json": scaled_targets(),
-        "training/hangbag-ttq-24.json": bag_recipes(),
+        "training/ttq-23.json": hour_pair(("v-grip16-scale04-60min", 15, 4), ("v-grip16-60min", 12, 5),
+                                          {"target_scale": 0.4}),
+        "training/hangbag-ttq-24.json": hour_pair(("v-grip16-60min", 7, 8), ("eps-60min", 6.5, 9),
+                                                  {"grip_weight": 16.0}),
         "training/ttq-25.json": {**study({name: [(m * 4, 1.4 - m / 10) for m in range(1, 8)]
                                           for name in ("minsnr-grip16-30min", "vcap-grip16-30min")}), "minutes": 30.0},
         "evals/hangbag-cd-cpu-v-grip16-60min.json": gripped_policy(0.9, 0.85, 0.1),
