@@ -45,6 +45,11 @@ def test_one_episode_rollout_and_report(checkpoint, tmp_path):
     summary = json.loads((tmp_path / "results.json").read_text())["summary"]
     assert summary["splits"]["unseen"]["episodes"] == 1 and summary["variant"] == "cd"
     assert summary["splits"]["unseen"]["rmse"] is None  # fresh poses carry no ground-truth goal
+    from tax3d.checkpoint import sha256
+
+    assert summary["weights_sha256"] == sha256(checkpoint / "model.safetensors")  # the weights it scored
+    low, high = summary["splits"]["unseen"]["success_ci95"]
+    assert 0.0 <= low <= summary["splits"]["unseen"]["success_rate"] <= high <= 1.0 and high - low > 0.5
     assert (tmp_path / "report.html").exists()
     assert "Success rate" in format_table(summary["splits"])
 
@@ -257,3 +262,33 @@ def test_the_demo_goal_and_the_mean_goal_run_through_the_policy(generated, tmp_p
         assert split["executed_grip_error"] < 1e-6  # the grasped vertices' own goals, exactly
         assert split["success_rate"] == 1.0  # the expert's own goal hangs the fixed cloth
     assert "the demos in" in capsys.readouterr().out
+
+
+def test_first_index_picks_the_test_episodes_of_a_demo_folder(tmp_path):
+    """--first-index 100 --episodes 2 scores demo_100 and demo_101 of the folder, never demo_0 ...; a folder with no
+    demo from that index on is a one-line error."""
+    from tax3d.data.format import save_demo
+    from tax3d.evaluate import plan_jobs
+    from tax3d.errors import UsageError
+
+    from tests.conftest import make_demo
+
+    (tmp_path / "unseen").mkdir()
+    for i in (0, 1, 100, 101, 102):
+        save_demo(tmp_path / "unseen" / f"demo_{i}.npz", make_demo())
+    names = lambda **kw: [j.name for j in plan_jobs(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", **kw))]
+    assert names(first_index=100, episodes=2) == ["demo_100", "demo_101"]
+    assert names(first_index=100) == ["demo_100", "demo_101", "demo_102"]
+    assert names(episodes=2) == ["demo_0", "demo_1"]
+    jobs = plan_jobs(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", first_index=100, seed=7))
+    assert [j.seed for j in jobs] == [107, 108, 109]  # the seed follows the demo's index, not its position
+    with pytest.raises(UsageError, match="no demo files from demo_200.npz on"):
+        plan_jobs(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", first_index=200))
+
+
+def test_success_interval_is_wilsons():
+    from tax3d.metrics import success_interval
+
+    low, high = success_interval(35, 40)
+    assert low == pytest.approx(0.7389, abs=1e-4) and high == pytest.approx(0.9454, abs=1e-4)
+    assert success_interval(40, 40)[1] == 1.0 and success_interval(0, 40)[0] == 0.0

@@ -18,8 +18,27 @@ def one_line_error(capsys, argv):
 def test_unknown_task_and_split(capsys, tmp_path):
     err = one_line_error(capsys, ["generate", "--task", "hangcloth", "--out", str(tmp_path)])
     assert "--task" in err and "hangproccloth-simple" in err
-    err = one_line_error(capsys, ["generate", "--split", "val", "--out", str(tmp_path)])
-    assert "--split" in err and "unseen" in err
+    err = one_line_error(capsys, ["generate", "--split", "test", "--out", str(tmp_path)])
+    assert "--split" in err and "unseen" in err and "val" in err
+
+
+def test_first_index_names_and_seeds_the_demos():
+    """--first-index 100 plans demo_100 ... with the seeds of those indices; a multimodal cloth's pair stays whole."""
+    from tax3d.sim.generate import _generate_jobs
+
+    jobs = _generate_jobs(Args(task="hangproccloth-unimodal", split="unseen", first_index=100, num=3))
+    assert [j.names for j in jobs] == [["demo_100.npz"], ["demo_101.npz"], ["demo_102.npz"]]
+    assert [j.cloth_index for j in jobs] == [100, 101, 102]
+    jobs = _generate_jobs(Args(task="hangproccloth-multimodal", split="ood", first_index=100, num=4))
+    assert [j.names for j in jobs] == [["demo_100.npz", "demo_101.npz"], ["demo_102.npz", "demo_103.npz"]]
+    assert [j.cloth_index for j in jobs] == [50, 51] and all(j.holes == [0, 1] for j in jobs)
+
+
+def test_odd_first_index_of_a_multimodal_pair_is_refused(capsys, tmp_path):
+    err = one_line_error(capsys, ["generate", "--task", "hangproccloth-multimodal", "--first-index", "101",
+                                  "--out", str(tmp_path / "o")])
+    assert "--first-index 101" in err and "multiple of 2" in err
+    assert not (tmp_path / "o").exists()
 
 
 def test_unwritable_output(capsys, tmp_path):

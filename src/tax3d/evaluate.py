@@ -20,7 +20,8 @@ from tax3d.errors import UsageError
 from tax3d.options import Finite, NonNegative, OutputFolder, Positive
 from tax3d.parallel import check_backend, run_each
 
-SPLIT_FOLDERS = {"train": ("train",), "unseen": ("unseen", "val"), "ood": ("ood", "val_ood")}
+# The official data's `val_ood` folder holds out-of-distribution poses; its `val` folder is evaluated as `val`.
+SPLIT_FOLDERS = {"train": ("train",), "val": ("val",), "unseen": ("unseen",), "ood": ("ood", "val_ood")}
 
 
 @dataclass
@@ -62,7 +63,8 @@ class Args:
     device: str = "cpu"
     """where each worker's model predicts: cpu, cuda, cuda:K or auto (CUDA when there is one)"""
     first_index: Annotated[int, NonNegative] = 0
-    """index of the first fresh episode of each split, for splits without a demo folder"""
+    """index of the first episode of each split: with --data, demo_FIRST.npz and the files after it (the table's
+    test episodes: 100); without a demo folder, the first fresh episode"""
     seed: int = 0
     policy_offset: Annotated[tuple[float, float, float] | None, Finite] = None
     """added to the predicted grip-vertex positions to make the gripper targets (default: the task's)"""
@@ -186,7 +188,7 @@ def _split_folder(data: Path | None, split: str) -> Path | None:
 
 
 def plan_jobs(args: Args) -> list[EvalJob]:
-    from tax3d.data.format import list_demos, load_demo
+    from tax3d.data.format import demo_index, load_demo
     from tax3d.sim.tasks import episode_params, get_split, get_task
 
     task = get_task(args.task)
@@ -213,14 +215,14 @@ def plan_jobs(args: Args) -> list[EvalJob]:
                       offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset),
                       goal=args.goal, mean_goal=mean_goal, select=args.select)
         if folder is not None:
-            paths = list_demos(folder)[: args.episodes]
-            for i, path in enumerate(paths):
+            paths = _demos_from(folder, args.first_index, args.episodes)
+            for path in paths:
                 demo = load_demo(path)
                 trans = demo["trans"]
                 floor = bool(demo["anchor_pc"][:, 2].min() >= trans[2] - 0.05)
                 jobs.append(EvalJob(split.name, path.stem, demo["deform_params"], float(demo["rot"][2]),
                                     trans.tolist(), floor, true_goal=demo["action_pc"] + demo["flow"],
-                                    seed=args.seed + i, **common))
+                                    seed=args.seed + demo_index(path), **common))
         else:
             num = task.sizes[split.name] if args.episodes is None else args.episodes
             for i in range(args.first_index, args.first_index + num):
@@ -231,6 +233,19 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         raise UsageError(f"--splits {args.splits!r}: no episodes to evaluate")
     jobs[0].denoising = True
     return jobs
+
+
+def _demos_from(folder: Path, first: int, episodes: int | None) -> list[Path]:
+    """The demo files of a split folder with index FIRST to FIRST + EPISODES - 1 (default: every index from FIRST
+    on); the summary counts the episodes found."""
+    from tax3d.data.format import demo_index, list_demos
+
+    end = None if episodes is None else first + episodes
+    paths = [p for p in list_demos(folder) if demo_index(p) >= first and (end is None or demo_index(p) < end)]
+    if not paths:
+        raise UsageError(f"--data {folder}: no demo files from demo_{first}.npz on; expected demos at or after "
+                         f"--first-index {first}")
+    return paths
 
 
 def _fixed_goal(args: Args, split_names: list[str]):
@@ -282,7 +297,7 @@ def _failed(job: EvalJob, why: str) -> dict:
 
 def summarise(results: list[dict], splits: list[str]) -> dict:
     """Per split: success rate, RMSE, and coverage / precision RMSE over each cloth's goals (appendix C)."""
-    from tax3d.metrics import coverage_rmse, precision_rmse
+    from tax3d.metrics import coverage_rmse, precision_rmse, success_interval
 
     table = {}
     for split in splits:
@@ -305,6 +320,7 @@ def summarise(results: list[dict], splits: list[str]) -> dict:
         table[split] = {
             "episodes": len(rows),
             "success_rate": float(np.mean([r["success"] for r in rows])),
+            "success_ci95": list(success_interval(sum(bool(r["success"]) for r in rows), len(rows))),
             "rmse": float(np.mean(scored)) if scored else None,
             "executed_rmse": float(np.mean(executed)) if executed else None,
             "executed_grip_error": float(np.mean(grips)) if grips else None,
@@ -358,6 +374,7 @@ def evaluate(args: Args, progress: bool = True) -> dict:
     splits = list(dict.fromkeys(j.split for j in jobs))
     summary = {
         "checkpoint": None if args.checkpoint is None else str(args.checkpoint), "task": args.task,
+        "weights_sha256": None if args.checkpoint is None else _weights_sha256(args.checkpoint),
         "variant": variant, "goal": args.goal,
         "command": "tax3d eval " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["eval"] else "tax3d.evaluate",
         "machine": provenance.machine(),
@@ -367,6 +384,13 @@ def evaluate(args: Args, progress: bool = True) -> dict:
     }
     _write_outputs(args, summary, results)
     return {"summary": summary, "results": results}
+
+
+def _weights_sha256(checkpoint: Path) -> str:
+    """The sha256 of the evaluated weights file, so a summary names exactly the weights it scored."""
+    from tax3d.checkpoint import WEIGHTS_NAME, sha256
+
+    return sha256(Path(checkpoint) / WEIGHTS_NAME)
 
 
 def _check_task(model, args: Args) -> None:

@@ -27,6 +27,14 @@ def min_of_samples_rmse(samples, goal):
     return errors.min(-1).values if isinstance(errors, torch.Tensor) else errors.min(-1)
 
 
+def success_interval(successes: int, episodes: int, confidence: float = 0.95) -> tuple[float, float]:
+    """The Wilson score interval of a success rate (scipy's), e.g. 35 of 40 -> (0.74, 0.95)."""
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(successes), int(episodes)).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
 def coverage_rmse(samples, goals):
     """Coverage RMSE of one cloth: for each ground-truth goal, the min RMSE over the samples; averaged.
 

@@ -19,7 +19,7 @@ from tax3d.sim.bag import parse_bag_params
 from tax3d.sim.cloth import validate_cloth_params
 from tax3d.sim.scenes import process_env
 from tax3d.sim.tasks import episode_params, get_split, get_task
-from tax3d.options import OutputFolder, Positive
+from tax3d.options import NonNegative, OutputFolder, Positive
 
 
 @dataclass
@@ -30,7 +30,10 @@ class Args:
     """hangproccloth-simple, hangproccloth-unimodal, hangproccloth-multimodal or hangbag (with --replay: the task
     the files come from)"""
     split: str = "train"
-    """train, unseen or ood (out-of-distribution anchor poses)"""
+    """train, val (the split choices are made on), unseen or ood (out-of-distribution anchor poses)"""
+    first_index: Annotated[int, NonNegative] = 0
+    """index of the first demonstration (demo_FIRST.npz ...): the table's test episodes start at 100; multimodal
+    needs an even index (two demonstrations share a cloth)"""
     num: Annotated[int | None, Positive] = None
     """number of demonstrations (with --replay: the first NUM files); default: the paper's size, or all files"""
     out: Annotated[Path, OutputFolder] = Path("data/demos")
@@ -167,9 +170,13 @@ def _generate_jobs(args: Args) -> list[Job]:
     if num < 0:
         raise UsageError(f"--num {num}: expected a non-negative number of demonstrations")
     per = task.demos_per_cloth
+    if args.first_index % per:
+        raise UsageError(f"--first-index {args.first_index}: {task.name} keeps {per} demonstrations of one cloth "
+                         f"together; expected a multiple of {per}")
+    first, end = args.first_index, args.first_index + num
     jobs = []
-    for c in range(math.ceil(num / per)):
-        idx = [i for i in range(c * per, (c + 1) * per) if i < num]
+    for c in range(first // per, math.ceil(end / per)):
+        idx = [i for i in range(c * per, (c + 1) * per) if i < end]
         jobs.append(Job([f"demo_{i}.npz" for i in idx], [i - c * per for i in idx], args.task, args.split, c))
     return jobs
 

@@ -28,22 +28,29 @@ class TaskSpec:
 @dataclass(frozen=True)
 class SplitSpec:
     name: str
-    seed: int  # docs/reference.md, HangProcCloth scene: train 0, val 10, val_ood 20
+    seed: int  # docs/reference.md, HangProcCloth scene: train 0, val 10 (our unseen), val_ood 20 (our ood)
     ood: bool
 
 
 TASKS = {
     t.name: t
     for t in (
-        TaskSpec("hangproccloth-simple", 1, SIMPLE_CLOTH, {"train": 16, "unseen": 40, "ood": 40}),
-        TaskSpec("hangproccloth-unimodal", 1, None, {"train": 64, "unseen": 40, "ood": 40}),
-        TaskSpec("hangproccloth-multimodal", 2, None, {"train": 64, "unseen": 40, "ood": 40}, demos_per_cloth=2),
+        TaskSpec("hangproccloth-simple", 1, SIMPLE_CLOTH, {"train": 16, "val": 40, "unseen": 40, "ood": 40}),
+        TaskSpec("hangproccloth-unimodal", 1, None, {"train": 64, "val": 40, "unseen": 40, "ood": 40}),
+        TaskSpec("hangproccloth-multimodal", 2, None, {"train": 64, "val": 40, "unseen": 40, "ood": 40}, demos_per_cloth=2),
         # One fixed bag (appendix A.5.2); the expert aims at handle 0, the one facing the hook.
-        TaskSpec("hangbag", 1, FIXED_BAG, {"train": 16, "unseen": 40, "ood": 40}, scene="bag",
+        TaskSpec("hangbag", 1, FIXED_BAG, {"train": 16, "val": 40, "unseen": 40, "ood": 40}, scene="bag",
                  policy_offset=POLICY_OFFSET),
     )
 }
-SPLITS = {s.name: s for s in (SplitSpec("train", 0, False), SplitSpec("unseen", 10, False), SplitSpec("ood", 20, True))}
+# `val` is the split every choice is made on (weights kept, recipe, sample selection, policy settings): anchor
+# poses and cloths from the training distribution under a seed of its own, so no val episode is a test episode.
+SPLITS = {s.name: s for s in (SplitSpec("train", 0, False), SplitSpec("val", 30, False), SplitSpec("unseen", 10, False),
+                              SplitSpec("ood", 20, True))}
+TEST_SPLITS = ("unseen", "ood")
+# The paper's table is scored on unseen and ood demos from this index on (demo_100 ...): episodes that no choice
+# made before the table (training validation, earlier pages) has touched.
+TEST_FIRST_INDEX = 100
 # The fixed double-hole cloth is exposed for users and tests; the multimodal task samples random two-hole cloths.
 FIXED_CLOTHS = {"simple": SIMPLE_CLOTH, "double": DOUBLE_HOLE_CLOTH}
 
