@@ -115,7 +115,11 @@ class TrainConfig:
     device: str = "auto"
     """auto (cuda when available), cpu or cuda"""
     precision: Literal["fp32", "bf16"] = "fp32"
-    """bf16: the network's forward under bfloat16 autocast (weights, optimizer and diffusion maths stay fp32)"""
+    """bf16: the network's forward under bfloat16 autocast (weights, optimizer and diffusion maths stay fp32); on a
+    CPU it is slower (benchmarks/train_step.py)"""
+    compile: bool = False
+    """torch.compile the training loss (network and diffusion maths; the first steps wait for the compiler): the
+    same maths in fewer, fused kernels (benchmarks/train_step.py)"""
 
 
 @dataclass
@@ -135,17 +139,34 @@ def paper() -> Config:
 
 
 def cpu() -> Config:
-    """Settings that learn quickly on a 2-core CPU; each difference from `paper` is measured in docs/training.md."""
+    """The CPU recipe for HangProcCloth-simple and -unimodal and HangBag, a run planned with --train.minutes on one
+    core; each difference from `paper` is measured in docs/training.md (x_0 prediction under the v weighting, a
+    smaller DiT on 256 + 256 points, the grasped vertices weighted 16 in the loss, a ten-times learning rate, an EMA
+    of the weights, six validations on 20 val demos)."""
     return Config(
         model=ModelConfig(hidden_size=64, depth=3, num_heads=4),
         diffusion=DiffusionConfig(prediction="sample", loss="v"),
-        data=DataConfig(num_action_points=256, num_anchor_points=256, rotate=False, subsets=32),
-        train=TrainConfig(lr=1e-3, steps=4000, val_every=500, val_samples=2, val_demos=10, threads=1,
+        data=DataConfig(num_action_points=256, num_anchor_points=256, rotate=False, subsets=32, grip_weight=16.0),
+        train=TrainConfig(lr=1e-3, steps=4000, val_every=500, val_samples=2, val_demos=20, validations=6, threads=1,
                           num_workers=1, ema=0.999),
     )
 
 
-PRESETS = {"paper": paper, "cpu": cpu}
+def cpu_multimodal() -> Config:
+    """`cpu` with the plain x_0 loss for HangProcCloth-multimodal: two goals per cloth, and the v weighting's stress
+    on the quiet steps samples between them (docs/training.md)."""
+    config = cpu()
+    config.diffusion.loss = "x0"
+    return config
+
+
+PRESETS = {"paper": paper, "cpu": cpu, "cpu-multimodal": cpu_multimodal}
+TASK_PRESETS = {"hangproccloth-multimodal": "cpu-multimodal"}
+"""the CPU preset of a task where it is not `cpu`"""
+
+
+def cpu_preset_of(task: str) -> str:
+    return TASK_PRESETS.get(task, "cpu")
 
 
 def preset(name: str) -> Config:

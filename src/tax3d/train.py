@@ -49,9 +49,9 @@ class Args:
 
     out: Annotated[str, OutputFolder] = "runs/tax3d"
     """output folder: config.json, log.jsonl, last/ and best/ checkpoints"""
-    preset: Optional[Literal["paper", "cpu"]] = None
-    """paper: the paper's settings (a GPU's work); cpu: settings that learn quickly on a CPU; default: paper where
-    CUDA is available, else cpu"""
+    preset: Optional[Literal["paper", "cpu", "cpu-multimodal"]] = None
+    """paper: the paper's settings (a GPU's work); cpu: the recipe that learns on one CPU core (cloths and the bag);
+    cpu-multimodal: cpu with the x_0 loss, for two-hole cloths; default: paper where CUDA is available, else cpu"""
     resume: bool = False
     """require a checkpoint in OUT/last to continue from (without it, one is used when present)"""
     model: cfg.ModelOverrides = field(default_factory=cfg.ModelOverrides)
@@ -430,6 +430,8 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
         cfg.save(config, out / "config.json")
 
     loss_fn = training_loss(model, dtype, device, world)
+    if c.compile:
+        loss_fn = torch.compile(loss_fn)
     sampler = StepBatches(len(dataset), c.batch_size, c.seed, step, world.rank, world.size)
     loader = DataLoader(EpochItems(dataset), batch_sampler=sampler,
                         num_workers=c.num_workers, persistent_workers=c.num_workers > 0)
