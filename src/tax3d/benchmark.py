@@ -1,7 +1,12 @@
-"""`tax3d benchmark`: generate the demonstrations, train each variant, evaluate it; resumable at every stage."""
+"""`tax3d benchmark`: the paper's table of one task, row by row, under one protocol; resumable at every stage.
+
+Every row (a variant) trains on the same demonstrations with the same preset and budget, keeps the weights that
+validate best on the `val` split, and is then scored once on the test episodes: `unseen` and `ood` demos from
+TEST_FIRST_INDEX on, which no choice has touched. A finished row's summary is written at once (to --keep too),
+and a rerun skips what is there: a row is never trained or scored again unless --rescore asks.
+"""
 
 from __future__ import annotations
-
 
 import dataclasses
 import json
@@ -9,82 +14,105 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Literal
 
-from tax3d.atomic import write_text
+from tax3d.atomic import write_json, write_text
 from tax3d.errors import UsageError
 from tax3d.options import NonNegative, OutputFolder, Positive
 
-SPLITS = ("train", "unseen", "ood")
+ROW_KIND, ROW_VERSION = "table-row", 1
 
 
 @dataclass
 class Args:
-    """Generate, train and evaluate a task for a list of variants; rerun the same command to continue after a stop."""
+    """Train and score each row of a task's table; rerun the same command to continue after a stop."""
 
     task: str = "hangproccloth-simple"
     variants: str = "cd,cp"
-    """comma-separated variants: cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd, rp"""
+    """comma-separated rows: cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd, rp"""
     out: Annotated[Path, OutputFolder] = Path("runs/benchmark")
     """output folder: data/<split>, <variant>/train, <variant>/eval, results.md"""
-    preset: Literal["cpu", "paper"] = "cpu"
-    """training settings and budget; `paper` is the paper's (about 500k steps, a GPU job)"""
+    preset: Literal["cpu", "cpu-multimodal", "paper"] | None = None
+    """training settings of every row (default: the task's CPU recipe, cpu-multimodal on multimodal, else cpu)"""
     steps: Annotated[int | None, Positive] = None
-    """training steps per variant (default: the preset's)"""
+    """training steps per row (default: the preset's; not with --minutes)"""
     minutes: Annotated[float, NonNegative] = 0.0
-    """training time limit per variant, in minutes (0: none)"""
+    """the wall-time budget of every row: each plans its steps to end after this many minutes (0: use steps)"""
     num_train: Annotated[int | None, Positive] = None
-    """training demonstrations (default: the paper's size for the task)"""
-    episodes: Annotated[int | None, Positive] = None
-    """evaluation episodes per split (default: the paper's sizes; train: every training demonstration)"""
-    samples: Annotated[int, Positive] = 1
-    """goal samples per evaluation episode (coverage and precision RMSE need several)"""
+    """training demonstrations (default: the paper's size for the task); the first NUM of the train folder"""
+    num_val: Annotated[int, Positive] = 40
+    """val demonstrations generated (the weights are chosen on the preset's first train.val_demos of them)"""
+    episodes: Annotated[int, Positive] = 40
+    """test episodes per split (unseen and ood), the paper's 40"""
+    first_index: Annotated[int, NonNegative] = 100
+    """index of the first test episode of unseen and ood (demo_FIRST.npz ...)"""
+    samples: Annotated[int, Positive] = 5
+    """goal samples per test episode (the policy executes the first; coverage and precision RMSE use all)"""
     workers: Annotated[int, Positive] = 2
     """worker processes for generation and evaluation"""
     data: Path | None = None
-    """existing demonstrations with one folder per split (default: OUT/data, generated here)"""
+    """demonstrations with one folder per split, completed here where demos are missing (default: OUT/data)"""
+    keep: Path | None = None
+    """also write each scored row's summary here, as VARIANT.json (a folder of the repository, say)"""
+    rescore: bool = False
+    """score rows on the test episodes again even where they have been (the count is kept in the summary)"""
     device: str = "auto"
     """where training and evaluation's predictions run: auto (CUDA when there is one), cpu, cuda or cuda:K"""
 
 
+def preset_of(args: Args) -> str:
+    from tax3d.config import cpu_preset_of
+
+    return args.preset or cpu_preset_of(args.task)
+
+
 def _generate_data(args: Args) -> Path:
+    """train (NUM_TRAIN), val (NUM_VAL), and the test episodes of unseen and ood; only what is missing is made."""
     from tax3d.sim.generate import Args as GenerateArgs
     from tax3d.sim.generate import generate
     from tax3d.sim.tasks import get_task
 
-    if args.data is not None:
-        if not (args.data / "train").is_dir():
-            raise UsageError(f"--data {args.data}: expected a train folder of demo_N.npz files inside it")
-        return args.data
     task = get_task(args.task)
-    root = args.out / "data"
-    for split in SPLITS:
-        num = args.num_train if split == "train" and args.num_train is not None else task.sizes[split]
-        if split != "train" and args.episodes is not None:
-            num = args.episodes
-        print(f"[benchmark] demonstrations: {args.task} {split} ({num}) -> {root / split}", flush=True)
-        stats = generate(GenerateArgs(task=args.task, split=split, num=num, out=root / split, workers=args.workers))
+    root = args.out / "data" if args.data is None else args.data
+    plan = [("train", 0, args.num_train or task.sizes["train"]), ("val", 0, args.num_val),
+            ("unseen", args.first_index, args.episodes), ("ood", args.first_index, args.episodes)]
+    for split, first, num in plan:
+        print(f"[benchmark] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / split}",
+              flush=True)
+        stats = generate(GenerateArgs(task=args.task, split=split, first_index=first, num=num, out=root / split,
+                                      workers=args.workers), progress=False)
         if stats["failed"]:
-            print(f"[benchmark] {len(stats['failed'])} {split} demos failed after every attempt; continuing without them")
+            raise UsageError(f"--data {root / split}: {len(stats['failed'])} demos failed after every attempt "
+                             f"({' '.join(stats['failed'][:3])}); expected every index of the table")
     return root
+
+
+def _train_files(folder: Path, num: int) -> tuple[str, ...]:
+    """The train folder itself when it holds exactly NUM demos, else its first NUM files."""
+    from tax3d.data.format import list_demos
+
+    files = list_demos(folder)
+    if len(files) < num:
+        raise UsageError(f"--num-train {num}: {folder} holds {len(files)} demos; expected at least {num}")
+    return (str(folder),) if len(files) == num else tuple(str(p) for p in files[:num])
 
 
 def _train(args: Args, variant: str, data: Path) -> Path:
     from tax3d import config as cfg
     from tax3d import train
+    from tax3d.sim.tasks import get_task
 
     out = args.out / variant / "train"
-    done = out / "DONE"
-    if not done.exists():
+    if not (out / "DONE").exists():
         print(f"[benchmark] training {variant} -> {out}", flush=True)
-        val = data / "unseen" if (data / "unseen").is_dir() else None
+        num = args.num_train or get_task(args.task).sizes["train"]
         train.run(train.Args(
-            out=str(out), preset=args.preset,
+            out=str(out), preset=preset_of(args),
             model=cfg.ModelOverrides(**_only(cfg.ModelOverrides, variant=variant)),
-            data=cfg.DataOverrides(**_only(cfg.DataOverrides, train=(str(data / "train"),),
-                                           val=(str(val),) if val else None, task=args.task)),
+            data=cfg.DataOverrides(**_only(cfg.DataOverrides, train=_train_files(data / "train", num),
+                                           val=(str(data / "val"),), task=args.task)),
             train=cfg.TrainOverrides(**_only(cfg.TrainOverrides, steps=args.steps, device=args.device,
-                                             time_limit=args.minutes if args.minutes > 0 else None)),
+                                             minutes=args.minutes if args.minutes > 0 else None)),
         ))  # fmt: skip
-        done.write_text("finished\n")
+        write_text(out / "DONE", "finished\n")
     return out / "best" if (out / "best").is_dir() else out / "last"
 
 
@@ -93,29 +121,65 @@ def _only(cls, **values) -> dict:
     return {k: v for k, v in values.items() if k in names and v is not None}
 
 
-def run(args: Args) -> int:
-    from tax3d.model.variants import variant_spec
-    from tax3d.devices import pick_device
+def _score(args: Args, variant: str, checkpoint: Path, data: Path) -> dict:
+    """The row's summary: scored on the test episodes now, or read back when it has been (unless --rescore)."""
+    from tax3d.checkpoint import read_log
     from tax3d.evaluate import Args as EvalArgs
-    from tax3d.evaluate import evaluate, format_table
+    from tax3d.evaluate import evaluate
+
+    path = args.out / variant / "row.json"
+    row = json.loads(path.read_text()) if path.is_file() else None
+    if row is not None and not args.rescore:
+        return row
+    print(f"[benchmark] scoring {variant} ({checkpoint}) on the test episodes", flush=True)
+    summary = evaluate(EvalArgs(checkpoint=checkpoint, task=args.task, splits="unseen,ood", data=data,
+                                first_index=args.first_index, episodes=args.episodes, samples=args.samples,
+                                workers=args.workers, device=args.device, out=args.out / variant / "eval"),
+                       progress=False)["summary"]
+    run = args.out / variant / "train"
+    validations = [{"step": r["step"], "val_rmse": r["val_rmse"]} for r in read_log(run / "log.jsonl")
+                   if "val_rmse" in r]
+    config = json.loads((checkpoint / "config.json").read_text())
+    row = {"kind": ROW_KIND, "version": ROW_VERSION, "task": args.task, "variant": variant,
+           "preset": preset_of(args), "minutes": args.minutes, "num_train": args.num_train,
+           "weights": checkpoint.name, "weights_chosen_on": "val" if checkpoint.name == "best" else "last step",
+           "weights_sha256": summary["weights_sha256"], "validations": validations, "config": config,
+           "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
+                    "scorings": (row or {}).get("test", {}).get("scorings", 0) + 1},
+           "splits": summary["splits"], "command": summary["command"], "machine": summary["machine"],
+           "date": summary["date"]}
+    write_json(path, row)
+    if args.keep is not None:
+        write_json(args.keep / f"{variant}.json", row)
+    return row
+
+
+def _check(args: Args) -> list[str]:
+    from tax3d.devices import pick_device
+    from tax3d.model.variants import variant_spec
     from tax3d.sim.tasks import get_task
 
     get_task(args.task)
     pick_device(args.device)  # a bad --device fails before any demonstration is generated
+    if args.steps is not None and args.minutes > 0:
+        raise UsageError(f"--steps {args.steps}: not with --minutes {args.minutes:g}; expected one budget")
     variants = [variant_spec(v.strip()).name for v in args.variants.split(",") if v.strip()]
     if not variants:
         raise UsageError("--variants: expected at least one variant")
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
+    return variants
+
+
+def run(args: Args) -> int:
+    from tax3d.evaluate import format_table
+
+    variants = _check(args)
     data = _generate_data(args)
     tables = {}
     for variant in variants:
         checkpoint = _train(args, variant, data)
-        result_file = args.out / variant / "eval" / "results.json"
-        if not result_file.exists():
-            print(f"[benchmark] evaluating {variant} ({checkpoint})", flush=True)
-            evaluate(EvalArgs(checkpoint=checkpoint, task=args.task, splits=",".join(SPLITS), data=data,
-                              episodes=args.episodes, samples=args.samples, workers=args.workers,
-                              device=args.device, out=args.out / variant / "eval"))
-        tables[variant] = json.loads(result_file.read_text())["summary"]["splits"]
+        tables[variant] = _score(args, variant, checkpoint, data)["splits"]
     lines = [f"# {args.task}: {', '.join(variants)}", ""]
     for variant, table in tables.items():
         lines += [f"## {variant}", "", "```", format_table(table), "```", ""]
