@@ -1,7 +1,7 @@
 """Where a training step's time goes on one CPU core, and how close it is to the core's matmul peak.
 
     python benchmarks/train_step.py [--train data/unimodal/train512] [--presets cpu,cpu-multimodal] [--steps 60]
-                                    [--threads 1] [--levers] [--out FILE]
+                                    [--threads 1] [--data-workers 0 1] [--levers] [--out FILE]
 
 Prints one JSON object. For each preset (the shipped recipe of each kind of task): seconds per step split into
 data (the next batch from the run's own DataLoader), forward (the loss), backward, optimizer (clipping, AdamW, the
@@ -165,6 +165,8 @@ def main(argv=None) -> int:
     parser.add_argument("--presets", default="cpu,cpu-multimodal")
     parser.add_argument("--steps", type=int, default=60)
     parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--data-workers", type=int, nargs="*", default=None,
+                        help="profile each preset with each of these data-worker counts (default: the preset's)")
     parser.add_argument("--levers", action="store_true")
     parser.add_argument("--rounds", type=int, default=30)
     parser.add_argument("--out", type=Path, default=None)
@@ -175,8 +177,12 @@ def main(argv=None) -> int:
               "machine": provenance.machine(), "date": provenance.today(), "threads": args.threads,
               "matmul_peak_flops": peaks, "presets": {}}
     for name in args.presets.split(","):
-        config = cfg.preset(name)
-        result["presets"][name] = profile(config, args.train, args.steps, peaks)
+        for workers in args.data_workers or [None]:
+            config = cfg.preset(name)
+            if workers is not None:
+                config.train.num_workers = workers
+            key = name if workers is None else f"{name}, {workers} data workers"
+            result["presets"][key] = profile(config, args.train, args.steps, peaks)
     if args.levers:
         result["levers"] = levers(cfg.preset(args.presets.split(",")[0]), args.rounds)
     result["peaks_again"] = {"fp32": matmul_peak(torch.float32), "bf16": matmul_peak(torch.bfloat16)}
