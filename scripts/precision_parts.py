@@ -64,7 +64,8 @@ def mean(values: list) -> float | None:
 def from_noised_goal(model, demos: list[dict], steps: list[int], generator, batch: int = 4) -> dict:
     import torch
 
-    from tax3d.data.dataset import make_target, to_world
+    from tax3d.data.dataset import make_target
+    from tax3d.frames import to_world
     from tax3d.geometry import farthest_point_sample
 
     diffusion, scale = model.diffusion, model.config.data.target_scale

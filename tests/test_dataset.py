@@ -5,19 +5,12 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from tax3d.data.dataset import (
-    VARIANTS,
-    DemoDataset,
-    frame_inputs,
-    make_sample,
-    make_target,
-    split_demos,
-    to_world,
-    variant_spec,
-)
+from tax3d.data.dataset import DemoDataset, make_sample, make_target, split_demos
 from tax3d.data.format import DemoError
 from tax3d.errors import UsageError
+from tax3d.frames import frame_inputs, to_world
 from tax3d.geometry import farthest_point_sample, rotate_z
+from tax3d.variants import VARIANTS, variant_spec
 
 from tests.conftest import write_demos
 

@@ -12,10 +12,10 @@ from safetensors.torch import load_file
 from tax3d import config as cfg
 from tax3d import train
 from tax3d.cli import main
-from tax3d.data.dataset import VARIANTS
 from tax3d.data.format import load_demo, save_demo
 from tax3d.metrics import rmse
 from tax3d.model.tax3d import Tax3D
+from tax3d.variants import VARIANTS
 
 from tests.conftest import TINY, read_log, synthetic_demo
 

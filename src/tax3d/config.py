@@ -16,9 +16,9 @@ from typing import Annotated, Literal, Optional
 
 import tyro
 
-from tax3d.model.variants import variant_spec
 from tax3d.errors import UsageError
 from tax3d.options import Fraction, NonNegative, Positive, problems
+from tax3d.variants import variant_spec
 
 
 @dataclass

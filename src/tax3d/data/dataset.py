@@ -17,29 +17,9 @@ from torch.utils.data import Dataset
 
 from tax3d.data.format import DemoError, grip_vertices, list_demos, load_demo
 from tax3d.errors import UsageError
+from tax3d.frames import frame_inputs, to_world
 from tax3d.geometry import farthest_point_sample, random_angle, rotate_z
-from tax3d.model.variants import VARIANTS, VariantSpec, variant_spec
-
-def frame_inputs(action: torch.Tensor, anchor: torch.Tensor, spec: VariantSpec) -> dict:
-    """Action (..., N, 3) and anchor (..., M, 3) world points in the variant's frames, and the frame origins.
-
-    Returns action, anchor (same shapes), action_mean and anchor_mean (..., 3): the world positions of the
-    action frame's and the anchor (goal) frame's origins. -W: both zero. SD/SP: both the scene cloud's mean.
-    """
-    if spec.scene:
-        scene_mean = torch.cat([action, anchor], dim=-2).mean(-2)
-        action_mean = anchor_mean = scene_mean
-    elif spec.object_centric:
-        action_mean, anchor_mean = action.mean(-2), anchor.mean(-2)
-    else:
-        action_mean = action.new_zeros(action.shape[:-2] + (3,))
-        anchor_mean = anchor.new_zeros(anchor.shape[:-2] + (3,))
-    return {
-        "action": action - action_mean[..., None, :],
-        "anchor": anchor - anchor_mean[..., None, :],
-        "action_mean": action_mean,
-        "anchor_mean": anchor_mean,
-    }
+from tax3d.variants import VARIANTS, VariantSpec, variant_spec
 
 
 def make_target(goal: torch.Tensor, frames: dict, spec: VariantSpec, target_scale: float = 1.0) -> torch.Tensor:
@@ -58,25 +38,6 @@ def make_target(goal: torch.Tensor, frames: dict, spec: VariantSpec, target_scal
     if spec.scene:
         target = torch.cat([target, anchor_target], dim=-2)
     return target * target_scale
-
-
-def to_world(prediction: torch.Tensor, frames: dict, spec: VariantSpec, target_scale: float = 1.0) -> torch.Tensor:
-    """World-frame goal action points (..., N, 3) from a model output in the variant's frame.
-
-    `frames` holds action (..., N, 3) and anchor_mean (..., 3) as made by `frame_inputs` or `make_sample`
-    (a sample or a collated batch); their leading dimensions must broadcast against the prediction's, so a
-    single scene's frames serve a stack of samples (S, N, 3). For SD/SP the anchor rows of the prediction
-    (after the first N) are dropped. `target_scale` must be the one the targets were made with.
-    """
-    action = frames["action"]
-    n = action.shape[-2]
-    allowed = (n, n + frames["anchor"].shape[-2]) if spec.scene and "anchor" in frames else (n,)
-    if prediction.shape[-2] not in allowed:
-        raise ValueError(f"prediction has {prediction.shape[-2]} points; expected {' or '.join(map(str, allowed))}")
-    goal = prediction[..., :n, :] / target_scale
-    if spec.target == "displacement":
-        goal = goal + action
-    return goal + frames["anchor_mean"][..., None, :]
 
 
 def _sample_indices(points: torch.Tensor, k: int | None, generator: torch.Generator | None) -> torch.Tensor:

@@ -21,12 +21,12 @@ from tax3d import config as cfg
 from tax3d.atomic import atomic_write, write_text
 from tax3d.checkpoint import (CONFIG_NAME, WEIGHTS_NAME, CheckpointError, check_directory, load_checked,
                               read_weights, with_weights_hash)
-from tax3d.data.dataset import frame_inputs, to_world
 from tax3d.errors import UsageError
+from tax3d.frames import frame_inputs, to_world
 from tax3d.geometry import farthest_point_sample
 from tax3d.model.diffusion import GaussianDiffusion, linear_betas
 from tax3d.model.dit import DiTPointCloudCross, DiTPointCloudScene
-from tax3d.model.variants import variant_spec
+from tax3d.variants import variant_spec
 
 CARRY_NEIGHBOURS = 4  # sampled points whose displacements an unsampled action point interpolates
 

@@ -1,0 +1,47 @@
+"""The variants of the paper (Section 4 and its ablations): what each predicts, in which frame, from which inputs.
+
+A plain registry without torch, so that checking a configuration does not load the model or the data code."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from tax3d.errors import UsageError
+
+VARIANTS = ("cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp", "rd", "rp")
+
+
+@dataclass(frozen=True)
+class VariantSpec:
+    """What a variant predicts, in which frame, and from which inputs (paper Section 4, ablations)."""
+
+    name: str
+    target: str  # "displacement" (cross-displacement) or "point" (goal action points)
+    object_centric: bool = True  # action on its mean, anchor and goal on the anchor mean; False: world frame
+    action_context: bool = True  # False: the model does not encode the action points (NAC)
+    scene: bool = False  # one scene cloud (action + anchor) on its mean, self-attention only (SD/SP)
+    diffusion: bool = True  # False: one regression pass with an MSE loss (RD/RP)
+
+
+_SPECS = {
+    "cd": VariantSpec("cd", "displacement"),
+    "cp": VariantSpec("cp", "point"),
+    "cd_w": VariantSpec("cd_w", "displacement", object_centric=False),
+    "cp_w": VariantSpec("cp_w", "point", object_centric=False),
+    "cd_nac": VariantSpec("cd_nac", "displacement", action_context=False),
+    "cp_nac": VariantSpec("cp_nac", "point", action_context=False),
+    "sd": VariantSpec("sd", "displacement", object_centric=False, scene=True),
+    "sp": VariantSpec("sp", "point", object_centric=False, scene=True),
+    "rd": VariantSpec("rd", "displacement", diffusion=False),
+    "rp": VariantSpec("rp", "point", diffusion=False),
+}
+
+
+def variant_spec(name: str | VariantSpec) -> VariantSpec:
+    """The spec of a variant name (case and '-' or '_' as in "CD-W" are accepted)."""
+    if isinstance(name, VariantSpec):
+        return name
+    key = str(name).strip().lower().replace("-", "_")
+    if key not in _SPECS:
+        raise UsageError(f"unknown variant '{name}'; expected one of {', '.join(VARIANTS)}")
+    return _SPECS[key]
