@@ -156,7 +156,7 @@ def _score(args: Args, variant: str, checkpoint: Path, data: Path) -> dict:
 
 def _check(args: Args) -> list[str]:
     from tax3d.devices import pick_device
-    from tax3d.model.variants import variant_spec
+    from tax3d.variants import variant_spec
     from tax3d.sim.tasks import get_task
 
     get_task(args.task)
