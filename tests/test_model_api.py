@@ -189,6 +189,9 @@ def test_predict_command_bad_input(tmp_path, capsys, checkpoint):
     demo = synthetic_demo(0)
     demo["anchor_pc"] = np.zeros((0, 3))
     np.savez(bad / "demo_0.npz", **{k: v for k, v in demo.items() if k not in ("deform_params", "anchors")})
+    minimal = tmp_path / "minimal"
+    minimal.mkdir()
+    np.savez(minimal / "demo_0.npz", **{k: v for k, v in demo.items() if k in ("action_pc", "anchor_pc")})
     incomplete = tmp_path / "incomplete"
     incomplete.mkdir()
     (incomplete / "config.json").write_text((ckpt / "config.json").read_text())
@@ -197,7 +200,8 @@ def test_predict_command_bad_input(tmp_path, capsys, checkpoint):
         (["--checkpoint", str(incomplete), "--demos", str(demos)], "model.safetensors is missing"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--variant", "cp"], "variant 'cd'"),
         (["--checkpoint", str(ckpt), "--demos", str(tmp_path / "empty")], "no demo_N.npz files"),
-        (["--checkpoint", str(ckpt), "--demos", str(bad)], "missing keys"),
+        (["--checkpoint", str(ckpt), "--demos", str(bad)], "anchor_pc has shape (0, 3)"),
+        (["--checkpoint", str(ckpt), "--demos", str(minimal)], "missing keys ['flow']"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--steps", "101"], "--steps 101"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--summary", str(demos)], "--summary"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--out", str(demos / "demo_0.npz" / "p.npz")], "--out"),
