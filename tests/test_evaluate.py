@@ -17,6 +17,7 @@ from tests.conftest import one_line_error
 
 
 def tiny_checkpoint(path, variant="cd", **data):
+    data.setdefault("task", "hangproccloth-simple")
     torch.manual_seed(0)
     config = cfg.validate(cfg.Config(
         model=cfg.ModelConfig(variant=variant, hidden_size=16, depth=1, num_heads=2),
@@ -109,6 +110,10 @@ def test_bad_inputs(capsys, checkpoint, tmp_path):
     err = one_line_error(capsys, ["eval", "--checkpoint", str(other), "--task", "hangproccloth-simple",
                                   "--out", str(tmp_path)])
     assert "trained for task 'hangproccloth-multimodal'" in err
+    for task, says in (("", "trained on no recorded task"), ("custom", "trained on custom demonstrations")):
+        unknown = tiny_checkpoint(tmp_path / f"unknown{task}", task=task)
+        one_line_error(capsys, ["eval", "--checkpoint", unknown, "--task", "hangbag", "--out", tmp_path],
+                       str(unknown), says, "'hangbag'", "--data.task hangbag")
 
 
 def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):

@@ -67,6 +67,31 @@ def test_trains_and_predicts_on_the_core_keys_alone(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["demos"] == 3
     assert np.load(tmp_path / "pred.npz")["goals"].shape[:2] == (3, 2)
 
+
+def test_the_run_records_the_task_its_demos_name(tmp_path, demos, capsys):
+    """config.json's data.task: the task the files name; "custom" where none names one; --data.task where the files
+    say nothing; files naming two tasks, or another than --data.task, are a one-line error before training."""
+    from tests.conftest import one_line_error
+
+    named = tmp_path / "named"
+    named.mkdir()
+    for i in range(2):
+        save_demo(named / f"demo_{i}.npz", {**synthetic_demo(i), "task": "hangbag"})
+    base = ["train", *TINY, "--train.steps", "1", "--train.val_every", "1"]
+    recorded = {}
+    for name, extra in (("custom", []), ("given", ["--data.task", "hangproccloth-unimodal"]), ("named", [])):
+        data = named if name == "named" else demos
+        assert main([*base, "--out", str(tmp_path / name), "--data.train", str(data), *extra]) == 0
+        recorded[name] = cfg.load(tmp_path / name / "config.json").data.task
+        assert cfg.load(tmp_path / name / "last" / "config.json").data.task == recorded[name]
+    assert recorded == {"custom": "custom", "given": "hangproccloth-unimodal", "named": "hangbag"}
+    capsys.readouterr()
+    one_line_error(capsys, [*base, "--out", tmp_path / "mixed", "--data.train", demos, named], "names task 'none'",
+                   "'hangbag'", "expected demonstrations of one task")
+    one_line_error(capsys, [*base, "--out", tmp_path / "other", "--data.train", named, "--data.task",
+                            "hangproccloth-simple"], "--data.task hangproccloth-simple", "task 'hangbag'")
+    assert not (tmp_path / "mixed").exists() and not (tmp_path / "other").exists()
+
 def test_outputs_and_config(tmp_path, demos):
     out = tmp_path / "run"
     assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--model.variant", "CP-W",

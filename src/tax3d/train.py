@@ -34,7 +34,7 @@ from tax3d import devices
 from tax3d import distributed
 from tax3d.checkpoint import STATE_NAME, find_last, read_weights, save_checkpoint, truncate_log
 from tax3d.data.dataset import DemoDataset, demo_files
-from tax3d.data.format import grip_vertices, load_demo
+from tax3d.data.format import data_task, grip_vertices, load_demo
 from tax3d.errors import UsageError
 from tax3d.metrics import coverage_rmse, grip_error, min_of_samples_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
@@ -386,6 +386,8 @@ def run(args: Args) -> int:
     c = config.train
     if not config.data.train:
         raise UsageError("--data.train: no training demonstration folder given")
+    files = demo_files(config.data.train) + (demo_files(config.data.val) if config.data.val else [])
+    config.data.task = data_task(files, config.data.task)  # what the files name, or "custom"; --data.task agrees
     distributed.check_batch_size(world, c.batch_size)
     if c.threads > 0:
         torch.set_num_threads(c.threads)

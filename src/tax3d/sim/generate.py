@@ -126,7 +126,7 @@ def run_job(job: Job) -> JobResult:
             episodes.append((ep, ok))
         if all(ok for _, ok in episodes):
             for name, (ep, _) in zip(job.names, episodes):
-                save_demo(Path(job.out) / name, episode_to_demo(ep))
+                save_demo(Path(job.out) / name, episode_to_demo(ep, job.task))
                 if job.render != "none" and ep.frames:
                     save_frames(ep.frames, Path(job.out) / "renders" / Path(name).stem, job.render)
                 result.written.append(name)
