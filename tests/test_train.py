@@ -151,6 +151,50 @@ def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, demos, monke
         assert all(torch.equal(w1[k], w2[k]) for k in w1)
 
 
+
+@pytest.mark.slow
+def test_ctrl_c_saves_last_and_the_rerun_resumes_there(tmp_path, demos):
+    """SIGINT to a real `tax3d train` (its whole process group, as a terminal's Ctrl-C, data worker included): last/
+    is written at the step reached, the run says which, exits 130; the rerun resumes there and says so, and the log
+    holds each step once."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "tax3d.cli", "train", *TINY, "--out", str(out), "--data.train", str(demos),
+               "--train.val_every", "1000000", "--train.num_workers", "1"]
+    env = {**os.environ, "PYTHONPATH": str(Path(train.__file__).parents[1]), "OMP_NUM_THREADS": "1"}
+    run = subprocess.Popen([*command, "--train.steps", "1000000"], env=env, stderr=subprocess.PIPE, text=True,
+                           start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not ((out / "log.jsonl").is_file() and len(read_log(out)) >= 3):
+        time.sleep(0.2)
+    os.killpg(run.pid, signal.SIGINT)
+    err = run.communicate(timeout=120)[1]
+    assert run.returncode == 130, err[-2000:]
+    step = torch.load(out / "last" / train.STATE_NAME, weights_only=True)["step"]
+    assert step >= 3 and f"interrupted at step {step} of 1000000: saved {out / 'last'}" in err
+    assert "tax3d train: interrupted" in err and "Traceback" not in err
+    assert [r["step"] for r in read_log(out)] == list(range(1, step + 1))
+
+    again = subprocess.run([*command, "--train.steps", str(step + 2)], env=env, capture_output=True, text=True,
+                           timeout=300)
+    assert again.returncode == 0 and f"resuming {out} at step {step}" in again.stderr, again.stderr[-2000:]
+    assert [r["step"] for r in read_log(out)] == list(range(1, step + 3))
+
+
+def test_a_fresh_start_starts_a_fresh_log(tmp_path, demos):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "log.jsonl").write_text('{"step": 1, "loss": 9.0}\n{"step": 2, "loss": 9.0}\n')  # a run without last/
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--train.steps", "2",
+                 "--train.val_every", "2"]) == 0
+    assert [r["step"] for r in read_log(out)] == [1, 2] and read_log(out)[0]["loss"] != 9.0
+
 def run_cli(capsys, *argv):
     code = main(list(argv))
     return code, capsys.readouterr().err.strip()
