@@ -404,3 +404,20 @@ def test_default_preset_fits_the_machine_and_long_runs_are_told(tmp_path, demos,
     assert "note: 30 steps at this machine's rate take about" in err
     assert "trained 30 steps in" in err and "weights in" in err  # the closing line
     assert cfg.load(tmp_path / "run" / "config.json").train.lr == cfg.preset(expected).train.lr
+
+
+def test_help_explains_every_option(capsys):
+    """Every option of `tax3d train --help` shows its field's docstring beside the note on its default."""
+    import dataclasses
+
+    for section in (cfg.ModelConfig, cfg.DiffusionConfig, cfg.DataConfig, cfg.TrainConfig):
+        assert set(cfg.field_docs(section)) == {f.name for f in dataclasses.fields(section)}, section
+    with pytest.raises(SystemExit) as done:
+        main(["train", "--help"])
+    assert done.value.code == 0
+    text = " ".join(capsys.readouterr().out.replace("│", " ").split())
+    assert "--train.minutes" in text and "plan the run to end after this many minutes on this machine" in text
+    assert "unlike train.minutes, the learning rate has not decayed then; 0: no limit" in text
+    assert "--model.variant" in text and "cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd or rp" in text
+    assert text.count("(default: the preset's)") == sum(
+        len(dataclasses.fields(s)) for s in (cfg.ModelConfig, cfg.DiffusionConfig, cfg.DataConfig, cfg.TrainConfig))
