@@ -29,8 +29,14 @@ def test_list_demos_in_index_order(tmp_path):
     (tmp_path / "notes.txt").write_text("x")
     assert [p.name for p in list_demos(tmp_path)] == ["demo_1.npz", "demo_2.npz", "demo_10.npz"]
     (tmp_path / "empty").mkdir()
-    with pytest.raises(DemoError, match="no demo_N.npz files"):
+    with pytest.raises(DemoError, match="no demo_N.npz files in this folder$"):
         list_demos(tmp_path / "empty")
+    for split in ("train", "unseen"):  # the parent of split folders: a hint at them
+        (tmp_path / "empty" / split).mkdir()
+        save_demo(tmp_path / "empty" / split / "demo_0.npz", make_demo())
+    with pytest.raises(DemoError, match="its folders train, unseen hold some; expected one of them") as err:
+        list_demos(tmp_path / "empty")
+    assert str(tmp_path / "empty" / "train") in str(err.value)
     with pytest.raises(DemoError, match="no such demonstration folder"):
         list_demos(tmp_path / "missing")
 

@@ -421,3 +421,17 @@ def test_help_explains_every_option(capsys):
     assert "--model.variant" in text and "cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd or rp" in text
     assert text.count("(default: the preset's)") == sum(
         len(dataclasses.fields(s)) for s in (cfg.ModelConfig, cfg.DiffusionConfig, cfg.DataConfig, cfg.TrainConfig))
+
+
+def test_the_bar_shows_no_validation_where_there_is_none(tmp_path, demos, capsys):
+    assert main(["train", *TINY, "--out", str(tmp_path / "run"), "--data.train", str(demos), "--train.steps", "2",
+                 "--train.val_every", "2"]) == 0
+    err = capsys.readouterr().err
+    assert "loss=" in err and "val=" not in err
+
+
+def test_generate_with_nothing_to_do_shows_no_bar(capsys):
+    from tax3d.sim import generate
+
+    assert generate._run([], generate.Args(), progress=True) == []
+    assert capsys.readouterr().err == ""

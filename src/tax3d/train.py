@@ -550,7 +550,10 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                         best = record["val_rmse"]
                         save_checkpoint(out, "best", model, weights, None)
                 save_last()
-                bar.set_postfix(loss=f"{record['loss']:.4f}", val=f"{record.get('val_rmse', float('nan')):.3f}")
+                shown = {"loss": f"{record['loss']:.4f}"}
+                if "val_rmse" in record:
+                    shown["val"] = f"{record['val_rmse']:.3f}"
+                bar.set_postfix(shown)
             distributed.barrier(world)
             if replan_from is not None and replan_from[0] < step < c.steps and not out_of_time:
                 replan(config, record, step, time.time() - started,

@@ -318,6 +318,10 @@ def list_demos(folder: str | os.PathLike) -> list[Path]:
         raise DemoError(f"{folder}: no such demonstration folder")
     files = sorted((p for p in folder.iterdir() if demo_index(p) is not None), key=demo_index)
     if not files:
+        holding = sorted(p.name for p in folder.iterdir() if p.is_dir() and next(p.glob("demo_*.npz"), None))
+        if holding:
+            raise DemoError(f"{folder}: no demo_N.npz files in this folder, but its folders {', '.join(holding)} "
+                            f"hold some; expected one of them (such as {folder / holding[0]})")
         raise DemoError(f"{folder}: no demo_N.npz files in this folder")
     return files
 

@@ -225,7 +225,7 @@ def _worst(figures: list[dict]) -> dict:
 def _run(jobs: list[Job], args: Args, progress: bool) -> list[JobResult]:
     from tqdm import tqdm
 
-    bar = tqdm(total=len(jobs), desc="episodes", unit="cloth", disable=not progress, file=sys.stderr)
+    bar = tqdm(total=len(jobs), desc="episodes", unit="cloth", disable=not progress or not jobs, file=sys.stderr)
     results = []
     for _, result, error in run_each(run_job, jobs, args.workers, args.backend, args.address):
         if error is not None:
