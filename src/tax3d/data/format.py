@@ -50,8 +50,8 @@ class Demo(dict):
     path: Path = Path("<demo>")
 
     def __missing__(self, key):
-        if key in OPTIONAL_KEYS:
-            missing = [k for k in SIM_KEYS if k not in self] if key in SIM_KEYS else [key]
+        if key in SIM_KEYS:
+            missing = [k for k in SIM_KEYS if k not in self]
             raise DemoError(f"{self.path}: missing keys {missing}; evaluation in simulation needs {list(SIM_KEYS)} "
                             f"(the anchor pose and the cloth), training and prediction only {list(CORE_KEYS)}")
         raise KeyError(key)
