@@ -91,7 +91,7 @@ def make_demo(n: int = 10, m: int = 20, seed: int = 0) -> dict:
         "rot": np.array([0.0, 0.0, 0.3]),
         "trans": np.array([1.0, -2.0, 0.0]),
         "deform_params": dict(SIMPLE_CLOTH),
-        "anchors": {3: {"pos": np.array([3.0, 5.0, 11.0]), "vertices": [24]}},
+        "anchors": {3: {"pos": np.array([3.0, 5.0, 11.0]), "vertices": [n - 1]}},
     }
 
 

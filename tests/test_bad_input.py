@@ -27,7 +27,7 @@ SHIPPED = ROOT / "checkpoints" / "tax3d-cd-simple"
 @pytest.fixture
 def checkpoint(tmp_path):
     folder = tmp_path / "ckpt"
-    tiny_model().save_pretrained(folder)
+    tiny_model(task="hangproccloth-simple").save_pretrained(folder)
     return folder
 
 

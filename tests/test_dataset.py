@@ -205,6 +205,28 @@ def test_grip_weight_marks_the_grasped_vertices(demo_dir, variant):
         DemoDataset(folder, variant, grip_weight=0.0)
 
 
+
+def test_grasped_vertices_come_from_the_file_and_a_demo_without_them_is_weighted_uniformly(tmp_path, capsys):
+    """The rows an `anchors` key names get grip_weight; a demo without `anchors` gets weight 1 everywhere, and the
+    run is told once on stderr (not once per demo or per item)."""
+    from tax3d.data import write_demo
+
+    rng = np.random.default_rng(0)
+    action, anchor = rng.normal(size=(12, 3)), rng.normal(size=(9, 3))
+    write_demo(tmp_path / "demo_0.npz", action, anchor, flow=np.ones((12, 3)),
+               anchors={7: {"pos": action[3], "vertices": [3]}, 8: {"pos": action[10], "vertices": [10]}})
+    write_demo(tmp_path / "demo_1.npz", action, anchor, flow=np.ones((12, 3)))
+    write_demo(tmp_path / "demo_2.npz", action, anchor, flow=np.ones((12, 3)))
+    ds = DemoDataset(tmp_path, "cd", num_action_points=None, num_anchor_points=None, grip_weight=5.0)
+    weighted = ds[0]["point_weight"]
+    assert torch.equal(torch.nonzero(weighted == 5.0).flatten(), torch.tensor([3, 10]))
+    assert torch.equal(weighted[weighted != 5.0], torch.ones(10))
+    assert torch.equal(ds[1]["point_weight"], torch.ones(12)) and torch.equal(ds[2]["point_weight"], torch.ones(12))
+    err = capsys.readouterr().err
+    assert err.count("note:") == 1 and "2 of 3 demos" in err and "demo_1.npz" in err and "weighted 1" in err
+    DemoDataset(tmp_path, "cd", num_action_points=None, num_anchor_points=None)
+    assert capsys.readouterr().err == ""  # grip_weight 1: nothing to say
+
 def test_rotation_is_on_for_training_only(demo_dir):
     folder, _ = demo_dir
     kwargs = dict(num_action_points=NA, num_anchor_points=NB)

@@ -17,6 +17,7 @@ from tests.conftest import one_line_error
 
 
 def tiny_checkpoint(path, variant="cd", **data):
+    data.setdefault("task", "hangproccloth-simple")
     torch.manual_seed(0)
     config = cfg.validate(cfg.Config(
         model=cfg.ModelConfig(variant=variant, hidden_size=16, depth=1, num_heads=2),
@@ -109,6 +110,10 @@ def test_bad_inputs(capsys, checkpoint, tmp_path):
     err = one_line_error(capsys, ["eval", "--checkpoint", str(other), "--task", "hangproccloth-simple",
                                   "--out", str(tmp_path)])
     assert "trained for task 'hangproccloth-multimodal'" in err
+    for task, says in (("", "trained on no recorded task"), ("custom", "trained on custom demonstrations")):
+        unknown = tiny_checkpoint(tmp_path / f"unknown{task}", task=task)
+        one_line_error(capsys, ["eval", "--checkpoint", unknown, "--task", "hangbag", "--out", tmp_path],
+                       str(unknown), says, "'hangbag'", "--data.task hangbag")
 
 
 def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
@@ -292,3 +297,16 @@ def test_success_interval_is_wilsons():
     low, high = success_interval(35, 40)
     assert low == pytest.approx(0.7389, abs=1e-4) and high == pytest.approx(0.9454, abs=1e-4)
     assert success_interval(40, 40)[1] == 1.0 and success_interval(0, 40)[0] == 0.0
+
+
+def test_evaluation_of_demos_without_the_simulator_keys_names_the_file_and_the_keys(capsys, tmp_path):
+    """Own demonstrations (the core keys alone) train and predict, but cannot be replayed in the simulator: eval
+    --data says which file lacks which keys, in one line, before any episode runs."""
+    from tax3d.data import write_demo
+
+    points = np.random.default_rng(0).normal(size=(8, 3))
+    write_demo(tmp_path / "data" / "unseen" / "demo_0.npz", points, points, flow=np.zeros((8, 3)))
+    one_line_error(capsys, ["eval", "--goal", "demo", "--data", tmp_path / "data", "--splits", "unseen",
+                            "--out", tmp_path / "e"],
+                   str(tmp_path / "data" / "unseen" / "demo_0.npz"), "missing keys ['rot', 'trans', 'deform_params']")
+    assert not (tmp_path / "e").exists()

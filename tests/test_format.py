@@ -6,7 +6,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from tax3d.data.format import DemoError, list_demos, load_demo, save_demo
+from tax3d.data.format import DemoError, grip_vertices, list_demos, load_demo, save_demo
 from tax3d.sim.cloth import SIMPLE_CLOTH
 
 from tests.conftest import make_demo
@@ -19,7 +19,7 @@ def test_round_trip(tmp_path):
     for key in ("action_pc", "anchor_pc", "flow", "rot", "trans"):
         assert np.array_equal(back[key], demo[key])
     assert back["deform_params"] == SIMPLE_CLOTH
-    assert back["anchors"][3]["vertices"] == [24]
+    assert back["anchors"][3]["vertices"] == [9]
     assert [p.name for p in tmp_path.iterdir()] == ["demo_0.npz"]  # no temporary file left
 
 
@@ -29,8 +29,14 @@ def test_list_demos_in_index_order(tmp_path):
     (tmp_path / "notes.txt").write_text("x")
     assert [p.name for p in list_demos(tmp_path)] == ["demo_1.npz", "demo_2.npz", "demo_10.npz"]
     (tmp_path / "empty").mkdir()
-    with pytest.raises(DemoError, match="no demo_N.npz files"):
+    with pytest.raises(DemoError, match="no demo_N.npz files in this folder$"):
         list_demos(tmp_path / "empty")
+    for split in ("train", "unseen"):  # the parent of split folders: a hint at them
+        (tmp_path / "empty" / split).mkdir()
+        save_demo(tmp_path / "empty" / split / "demo_0.npz", make_demo())
+    with pytest.raises(DemoError, match="its folders train, unseen hold some; expected one of them") as err:
+        list_demos(tmp_path / "empty")
+    assert str(tmp_path / "empty" / "train") in str(err.value)
     with pytest.raises(DemoError, match="no such demonstration folder"):
         list_demos(tmp_path / "missing")
 
@@ -87,3 +93,76 @@ def test_truncated_file(tmp_path):
     path.write_bytes(path.read_bytes()[:100])
     with pytest.raises(DemoError, match="unreadable"):
         load_demo(path)
+
+
+def test_the_core_alone_loads_and_the_simulator_keys_are_named_where_needed(tmp_path):
+    """action_pc, anchor_pc and flow are a demo; asked for a simulator key it lacks, the demo names the file and
+    every simulator key missing (what evaluation in simulation reads), in one line."""
+    demo = make_demo()
+    path = tmp_path / "demo_0.npz"
+    np.savez(path, **{k: demo[k] for k in ("action_pc", "anchor_pc", "flow")})
+    back = load_demo(path)
+    assert sorted(back) == ["action_pc", "anchor_pc", "flow"] and grip_vertices(back) == []
+    with pytest.raises(DemoError, match=r"missing keys \['rot', 'trans', 'deform_params'\]") as err:
+        back["trans"]
+    assert str(path) in str(err.value) and "\n" not in str(err.value)
+    with pytest.raises(KeyError):
+        back["no_such_key"]
+
+
+def test_write_demo_round_trip_with_goal_or_flow(tmp_path):
+    from tax3d.data import write_demo
+
+    action, anchor = np.random.default_rng(0).normal(size=(10, 3)), np.random.default_rng(1).normal(size=(7, 3))
+    goal = action + [1.0, 2.0, 3.0]
+    write_demo(tmp_path / "a" / "demo_0.npz", action.tolist(), anchor, goal=goal, task="mine",
+               anchors={0: {"pos": goal[4], "vertices": [4]}})
+    write_demo(tmp_path / "b" / "demo_0.npz", action, anchor, flow=goal - action)
+    a, b = load_demo(tmp_path / "a" / "demo_0.npz"), load_demo(tmp_path / "b" / "demo_0.npz")
+    assert np.allclose(a["flow"], [1.0, 2.0, 3.0]) and np.array_equal(a["flow"], b["flow"])
+    assert a["task"] == "mine" and grip_vertices(a) == [4] and "task" not in b
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["demo_0.npz"]  # nothing temporary left
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(), "neither goal nor flow given"),
+    (dict(goal=np.zeros((10, 3)), flow=np.zeros((10, 3))), "both goal and flow given"),
+    (dict(goal=np.zeros((1, 3))), r"goal has shape \(1, 3\); expected \(10, 3\)"),
+    (dict(flow=np.full((10, 3), np.inf)), "flow contains NaN or infinite"),
+    (dict(goal=np.zeros((10, 3)), anchor=np.zeros((5, 2))), r"anchor has shape \(5, 2\)"),
+    (dict(goal=np.zeros((10, 3)), anchor=[["a", "b", "c"]]), "anchor is not an array of numbers"),
+    (dict(goal=np.zeros((10, 3)), achors={}), r"unknown keys \['achors'\]"),
+    (dict(goal=np.zeros((10, 3)), anchors={0: {"pos": np.zeros(3), "vertices": [10]}}), "anchors holds vertex 10"),
+    (dict(goal=np.zeros((10, 3)), task=""), "task is ''"),
+])
+def test_write_demo_refuses_bad_input_in_one_line(tmp_path, kwargs, words):
+    from tax3d.data import write_demo
+
+    kwargs = {"anchor": np.zeros((5, 3)), **kwargs}
+    path = tmp_path / "demo_0.npz"
+    with pytest.raises(DemoError, match=words) as err:
+        write_demo(path, np.zeros((10, 3)), **kwargs)
+    assert str(path) in str(err.value) and "\n" not in str(err.value)
+    assert not path.exists()
+
+
+def test_data_task_agrees_or_says_custom(tmp_path):
+    from tax3d.data import write_demo
+    from tax3d.data.format import data_task
+
+    points = np.zeros((4, 3))
+    for name, task in (("simple", "hangproccloth-simple"), ("bag", "hangbag"), ("none", None)):
+        extra = {} if task is None else {"task": task}
+        for i in range(2):
+            write_demo(tmp_path / name / f"demo_{i}.npz", points, points, flow=points, **extra)
+    simple, bag, none = (list_demos(tmp_path / n) for n in ("simple", "bag", "none"))
+    assert data_task(simple) == "hangproccloth-simple" and data_task(none) == "custom"
+    assert data_task(none, given="hangbag") == "hangbag" and data_task(simple, "hangproccloth-simple")
+    with pytest.raises(DemoError, match="names task 'hangproccloth-simple'.*'hangbag'; expected demonstrations of "
+                                        "one task"):
+        data_task(simple + bag)
+    with pytest.raises(DemoError, match="'none'"):
+        data_task(simple + none)
+    with pytest.raises(DemoError, match="--data.task hangbag: .*demo_0.npz holds a demonstration of task "
+                                        "'hangproccloth-simple'"):
+        data_task(simple, given="hangbag")

@@ -74,7 +74,7 @@ def test_generated_demo_is_valid_and_complete(generated):
     assert stats["written"] == 1 and stats["failed"] == []
     demo = load_demo(out / "demo_0.npz")
     assert demo["action_pc"].shape == (580, 3) and demo["flow"].shape == (580, 3)
-    assert demo["deform_params"]["holes"] == SIMPLE_CLOTH["holes"]
+    assert demo["deform_params"]["holes"] == SIMPLE_CLOTH["holes"] and demo["task"] == "hangproccloth-simple"
     # initial cloth: vertex 0 top-left at (-3, 5, 11), vertex 24 top-right at (3, 5, 11)
     assert np.allclose(demo["action_pc"][0], [-3, 5, 11], atol=1e-3)
     assert np.allclose(demo["action_pc"][24], [3, 5, 11], atol=1e-3)

@@ -165,6 +165,24 @@ def test_predict_command(tmp_path, capsys, checkpoint):
         assert np.isclose(np.mean([e[i] for e, i in zip(f["rmse"], medoids)]), summary["rmse_medoid"])
 
 
+
+def test_predictions_of_demos_of_different_sizes_load_without_pickle(tmp_path, capsys, checkpoint):
+    """pred.npz is plain arrays: goals padded with NaN beyond each demo's points; predict says where it wrote."""
+    ckpt, _ = checkpoint
+    folder = tmp_path / "sizes"
+    folder.mkdir()
+    for i, n in enumerate((N, N + 6)):
+        save_demo(folder / f"demo_{i}.npz", synthetic_demo(i, n=n))
+    out = tmp_path / "p.npz"
+    assert main(["predict", "--checkpoint", str(ckpt), "--demos", str(folder), "--samples", "2", "--steps", "2",
+                 "--out", str(out), "--summary", str(tmp_path / "s.json")]) == 0
+    err = capsys.readouterr().err
+    assert f"predictions: {out}" in err and f"summary: {tmp_path / 's.json'}" in err
+    with np.load(out) as f:  # allow_pickle is False by default
+        goals, points = f["goals"], f["points"]
+    assert goals.shape == (2, 2, N + 6, 3) and points.tolist() == [N, N + 6]
+    assert np.isnan(goals[0, :, N:]).all() and np.isfinite(goals[0, :, :N]).all() and np.isfinite(goals[1]).all()
+
 def test_predict_compares_the_samplers_on_the_same_demos_and_seed(tmp_path, capsys, checkpoint):
     ckpt, demos = checkpoint
     argv = ["predict", "--checkpoint", str(ckpt), "--demos", str(demos), "--samples", "2"]
@@ -189,6 +207,9 @@ def test_predict_command_bad_input(tmp_path, capsys, checkpoint):
     demo = synthetic_demo(0)
     demo["anchor_pc"] = np.zeros((0, 3))
     np.savez(bad / "demo_0.npz", **{k: v for k, v in demo.items() if k not in ("deform_params", "anchors")})
+    minimal = tmp_path / "minimal"
+    minimal.mkdir()
+    np.savez(minimal / "demo_0.npz", **{k: v for k, v in demo.items() if k in ("action_pc", "anchor_pc")})
     incomplete = tmp_path / "incomplete"
     incomplete.mkdir()
     (incomplete / "config.json").write_text((ckpt / "config.json").read_text())
@@ -197,7 +218,8 @@ def test_predict_command_bad_input(tmp_path, capsys, checkpoint):
         (["--checkpoint", str(incomplete), "--demos", str(demos)], "model.safetensors is missing"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--variant", "cp"], "variant 'cd'"),
         (["--checkpoint", str(ckpt), "--demos", str(tmp_path / "empty")], "no demo_N.npz files"),
-        (["--checkpoint", str(ckpt), "--demos", str(bad)], "missing keys"),
+        (["--checkpoint", str(ckpt), "--demos", str(bad)], "anchor_pc has shape (0, 3)"),
+        (["--checkpoint", str(ckpt), "--demos", str(minimal)], "missing keys ['flow']"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--steps", "101"], "--steps 101"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--summary", str(demos)], "--summary"),
         (["--checkpoint", str(ckpt), "--demos", str(demos), "--out", str(demos / "demo_0.npz" / "p.npz")], "--out"),

@@ -44,6 +44,55 @@ def test_overfits_one_demonstration(tmp_path, capsys):
     assert {"loss", "mse", "vb", "lr", "seconds"} <= set(log[0])
 
 
+
+def test_trains_and_predicts_on_the_core_keys_alone(tmp_path, capsys):
+    """Demonstrations holding only action_pc, anchor_pc and flow (written with write_demo) train, validate and
+    predict; with grip_weight the run says once that they name no grasped vertices."""
+    import json
+
+    from tax3d.data import write_demo
+
+    rng = np.random.default_rng(0)
+    for i in range(3):
+        demo = synthetic_demo(rng)
+        write_demo(tmp_path / "mine" / f"demo_{i}.npz", demo["action_pc"], demo["anchor_pc"],
+                   goal=demo["action_pc"] + demo["flow"])
+    out = tmp_path / "run"
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(tmp_path / "mine"), "--data.val",
+                 str(tmp_path / "mine"), "--train.steps", "4", "--train.val_every", "4",
+                 "--data.grip_weight", "4"]) == 0
+    assert "name no grasped vertices" in capsys.readouterr().err
+    assert "val_rmse" in read_log(out)[-1] and "val_grip_error" not in read_log(out)[-1]
+    assert main(["predict", "--checkpoint", str(out / "best"), "--demos", str(tmp_path / "mine"), "--samples", "2",
+                 "--steps", "2", "--out", str(tmp_path / "pred.npz")]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["demos"] == 3
+    assert np.load(tmp_path / "pred.npz")["goals"].shape[:2] == (3, 2)
+
+
+def test_the_run_records_the_task_its_demos_name(tmp_path, demos, capsys):
+    """config.json's data.task: the task the files name; "custom" where none names one; --data.task where the files
+    say nothing; files naming two tasks, or another than --data.task, are a one-line error before training."""
+    from tests.conftest import one_line_error
+
+    named = tmp_path / "named"
+    named.mkdir()
+    for i in range(2):
+        save_demo(named / f"demo_{i}.npz", {**synthetic_demo(i), "task": "hangbag"})
+    base = ["train", *TINY, "--train.steps", "1", "--train.val_every", "1"]
+    recorded = {}
+    for name, extra in (("custom", []), ("given", ["--data.task", "hangproccloth-unimodal"]), ("named", [])):
+        data = named if name == "named" else demos
+        assert main([*base, "--out", str(tmp_path / name), "--data.train", str(data), *extra]) == 0
+        recorded[name] = cfg.load(tmp_path / name / "config.json").data.task
+        assert cfg.load(tmp_path / name / "last" / "config.json").data.task == recorded[name]
+    assert recorded == {"custom": "custom", "given": "hangproccloth-unimodal", "named": "hangbag"}
+    capsys.readouterr()
+    one_line_error(capsys, [*base, "--out", tmp_path / "mixed", "--data.train", demos, named], "names task 'none'",
+                   "'hangbag'", "expected demonstrations of one task")
+    one_line_error(capsys, [*base, "--out", tmp_path / "other", "--data.train", named, "--data.task",
+                            "hangproccloth-simple"], "--data.task hangproccloth-simple", "task 'hangbag'")
+    assert not (tmp_path / "mixed").exists() and not (tmp_path / "other").exists()
+
 def test_outputs_and_config(tmp_path, demos):
     out = tmp_path / "run"
     assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--model.variant", "CP-W",
@@ -102,6 +151,50 @@ def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, demos, monke
         w2 = load_file(tmp_path / "killed" / name / "model.safetensors")
         assert all(torch.equal(w1[k], w2[k]) for k in w1)
 
+
+
+@pytest.mark.slow
+def test_ctrl_c_saves_last_and_the_rerun_resumes_there(tmp_path, demos):
+    """SIGINT to a real `tax3d train` (its whole process group, as a terminal's Ctrl-C, data worker included): last/
+    is written at the step reached, the run says which, exits 130; the rerun resumes there and says so, and the log
+    holds each step once."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "tax3d.cli", "train", *TINY, "--out", str(out), "--data.train", str(demos),
+               "--train.val_every", "1000000", "--train.num_workers", "1"]
+    env = {**os.environ, "PYTHONPATH": str(Path(train.__file__).parents[1]), "OMP_NUM_THREADS": "1"}
+    run = subprocess.Popen([*command, "--train.steps", "1000000"], env=env, stderr=subprocess.PIPE, text=True,
+                           start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not ((out / "log.jsonl").is_file() and len(read_log(out)) >= 3):
+        time.sleep(0.2)
+    os.killpg(run.pid, signal.SIGINT)
+    err = run.communicate(timeout=120)[1]
+    assert run.returncode == 130, err[-2000:]
+    step = torch.load(out / "last" / train.STATE_NAME, weights_only=True)["step"]
+    assert step >= 3 and f"interrupted at step {step} of 1000000: saved {out / 'last'}" in err
+    assert "tax3d train: interrupted" in err and "Traceback" not in err
+    assert [r["step"] for r in read_log(out)] == list(range(1, step + 1))
+
+    again = subprocess.run([*command, "--train.steps", str(step + 2)], env=env, capture_output=True, text=True,
+                           timeout=300)
+    assert again.returncode == 0 and f"resuming {out} at step {step}" in again.stderr, again.stderr[-2000:]
+    assert [r["step"] for r in read_log(out)] == list(range(1, step + 3))
+
+
+def test_a_fresh_start_starts_a_fresh_log(tmp_path, demos):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "log.jsonl").write_text('{"step": 1, "loss": 9.0}\n{"step": 2, "loss": 9.0}\n')  # a run without last/
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--train.steps", "2",
+                 "--train.val_every", "2"]) == 0
+    assert [r["step"] for r in read_log(out)] == [1, 2] and read_log(out)[0]["loss"] != 9.0
 
 def run_cli(capsys, *argv):
     code = main(list(argv))
@@ -325,3 +418,34 @@ def test_a_compiled_run_matches_an_eager_one(tmp_path, demos):
         logs[name] = [r["loss"] for r in read_log(out)]
     assert len(logs["compiled"]) == 4
     assert logs["compiled"] == pytest.approx(logs["eager"], rel=1e-3)
+
+
+def test_help_explains_every_option(capsys):
+    """Every option of `tax3d train --help` shows its field's docstring beside the note on its default."""
+    import dataclasses
+
+    for section in (cfg.ModelConfig, cfg.DiffusionConfig, cfg.DataConfig, cfg.TrainConfig):
+        assert set(cfg.field_docs(section)) == {f.name for f in dataclasses.fields(section)}, section
+    with pytest.raises(SystemExit) as done:
+        main(["train", "--help"])
+    assert done.value.code == 0
+    text = " ".join(capsys.readouterr().out.replace("│", " ").split())
+    assert "--train.minutes" in text and "plan the run to end after this many minutes on this machine" in text
+    assert "unlike train.minutes, the learning rate has not decayed then; 0: no limit" in text
+    assert "--model.variant" in text and "cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd or rp" in text
+    assert text.count("(default: the preset's)") == sum(
+        len(dataclasses.fields(s)) for s in (cfg.ModelConfig, cfg.DiffusionConfig, cfg.DataConfig, cfg.TrainConfig))
+
+
+def test_the_bar_shows_no_validation_where_there_is_none(tmp_path, demos, capsys):
+    assert main(["train", *TINY, "--out", str(tmp_path / "run"), "--data.train", str(demos), "--train.steps", "2",
+                 "--train.val_every", "2"]) == 0
+    err = capsys.readouterr().err
+    assert "loss=" in err and "val=" not in err
+
+
+def test_generate_with_nothing_to_do_shows_no_bar(capsys):
+    from tax3d.sim import generate
+
+    assert generate._run([], generate.Args(), progress=True) == []
+    assert capsys.readouterr().err == ""

@@ -7,8 +7,11 @@ to its output, and a checkpoint's `config.json` is the same JSON.
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import inspect
 import json
+import textwrap
 import types
 import typing
 from dataclasses import dataclass, field
@@ -28,9 +31,13 @@ class ModelConfig:
     variant: str = "cd"
     """cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd or rp (paper Sec. 4; CD-W and cd_w are the same)"""
     hidden_size: Annotated[int, Positive] = 128
+    """width of the DiT's tokens (a multiple of num_heads)"""
     depth: Annotated[int, Positive] = 5
+    """number of DiT blocks"""
     num_heads: Annotated[int, Positive] = 4
+    """attention heads per block"""
     mlp_ratio: Annotated[float, Positive] = 4.0
+    """width of each block's MLP, times hidden_size"""
     mean_input: bool = False
     """condition every block on the mean of the noised input x_t over the action points (not in the paper): the
     global translation that separates a cloth's goals; docs/training.md measures it"""
@@ -41,7 +48,9 @@ class DiffusionConfig:
     """The diffusion process (docs/reference.md, Diffusion) and the default sampler of `predict`."""
 
     num_timesteps: Annotated[int, Positive] = 100
+    """diffusion steps of the training schedule (at least 21)"""
     learn_sigma: bool = True
+    """the network also predicts each step's variance (trained with the variational bound term)"""
     prediction: Literal["epsilon", "sample"] = "epsilon"
     """what the network outputs: the noise (the paper) or the clean target x_0, turned into the noise
     estimate eps = (x_t / sqrt(abar_t) - x_0) / sqrt(1 / abar_t - 1) so that loss and samplers are unchanged"""
@@ -52,6 +61,7 @@ class DiffusionConfig:
     sample_steps: Annotated[int, Positive] = 100
     """denoising steps at prediction: fewer than num_timesteps respaces the schedule"""
     sampler: Literal["ddpm", "ddim"] = "ddpm"
+    """the default sampler of prediction: ddpm (the paper's) or ddim (deterministic)"""
 
 
 @dataclass
@@ -63,7 +73,9 @@ class DataConfig:
     val: tuple[str, ...] = ()
     """validation demo folders; none: no validation and no best checkpoint"""
     num_action_points: Annotated[int, Positive] = 512
+    """action points sampled (farthest point sampling) per training sample"""
     num_anchor_points: Annotated[int, Positive] = 512
+    """anchor points sampled per training sample"""
     train_size: Annotated[int, Positive] = 400
     """samples per epoch (demos are repeated); an epoch holds every demo at least once"""
     target_scale: Annotated[float, Positive] = 1.0
@@ -75,7 +87,8 @@ class DataConfig:
     grip_weight: Annotated[float, Positive] = 1.0
     """the loss weight of the grasped vertices (where the policy's grippers go) against 1 for every other point"""
     task: str = ""
-    """the benchmark task the demonstrations come from (recorded so evaluation can check it; empty: unknown)"""
+    """the task the demonstrations come from, recorded so that evaluation can check it (default: the task the demo
+    files name, or custom where they name none)"""
 
 
 @dataclass
@@ -83,12 +96,19 @@ class TrainConfig:
     """The optimiser, schedule, validation and bookkeeping of a training run."""
 
     lr: Annotated[float, Positive] = 1e-4
+    """peak learning rate of AdamW, after the warm-up"""
     weight_decay: Annotated[float, NonNegative] = 1e-5
+    """AdamW's weight decay"""
     warmup_steps: Annotated[int, NonNegative] = 100
+    """steps of linear warm-up before the cosine decay"""
     batch_size: Annotated[int, Positive] = 16
+    """samples per step (the global batch, shared among processes under torchrun)"""
     grad_clip: Annotated[float, NonNegative] = 1.0
+    """clip the gradient norm to this (0: no clipping)"""
     steps: Annotated[int, Positive] = 500_000
+    """optimizer steps of the run; the cosine decay ends at the last"""
     seed: int = 42
+    """seed of the weights, the batches and the diffusion noise"""
     val_every: Annotated[int, Positive] = 5000
     """validate and write last/ every this many steps (and at the end)"""
     val_samples: Annotated[int, Positive] = 5
@@ -106,10 +126,12 @@ class TrainConfig:
     replan_progress: Annotated[float, NonNegative] = 0.0
     """the cosine decay's progress (0 to 1) at replan_step"""
     time_limit: Annotated[float, NonNegative] = 0.0
-    """stop after this many minutes of training, as if at the last step (0: no limit)"""
+    """stop after this many minutes of training, as if at the last step, the schedule unchanged (unlike
+    train.minutes, the learning rate has not decayed then; 0: no limit)"""
     ema: Annotated[float, Fraction] = 0.0
     """decay of an exponential moving average of the weights (0: off); checkpoints then hold the average"""
     num_workers: Annotated[int, NonNegative] = 0
+    """data loading processes (0: in the training process); the samples do not depend on it"""
     threads: Annotated[int, NonNegative] = 0
     """torch CPU threads (0: torch's default)"""
     device: str = "auto"
@@ -303,13 +325,23 @@ def validate(config: Config, where: str = "config") -> Config:
 # --- command-line overrides ------------------------------------------------------------------------------------
 
 
+def field_docs(cls: type) -> dict[str, str]:
+    """The docstring under each field of a dataclass (the string right after it), on one line."""
+    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
+    return {node.target.id: " ".join(after.value.value.split()) for node, after in zip(body, body[1:])
+            if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
+            and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)}
+
+
 def overrides_of(cls: type) -> type:
-    """A dataclass with cls's fields, each optional and None by default: None keeps the preset's value."""
+    """A dataclass with cls's fields, each optional and None by default: None keeps the preset's value. Each keeps
+    its field's docstring as its --help."""
     hints = typing.get_type_hints(cls)
+    docs = field_docs(cls)
     fields = []
     for f in dataclasses.fields(cls):
-        hint = Annotated[Optional[hints[f.name]], tyro.conf.arg(help_behavior_hint="(default: the preset's)")]
-        fields.append((f.name, hint, field(default=None)))
+        arg = tyro.conf.arg(help=docs.get(f.name, ""), help_behavior_hint="(default: the preset's)")
+        fields.append((f.name, Annotated[Optional[hints[f.name]], arg], field(default=None)))
     return dataclasses.make_dataclass(f"{cls.__name__}Overrides", fields, frozen=True)
 
 

@@ -394,9 +394,16 @@ def _weights_sha256(checkpoint: Path) -> str:
 
 
 def _check_task(model, args: Args) -> None:
+    """The checkpoint must record the task it was trained on (data.task of its config.json), and it must be --task."""
     trained_on = getattr(model.config.data, "task", "") or ""
-    if trained_on and trained_on != args.task:
-        raise UsageError(f"--checkpoint {args.checkpoint}: trained for task {trained_on!r}, not {args.task!r}")
+    if trained_on in ("", "custom"):
+        what = "no recorded task" if not trained_on else "custom demonstrations (their files name no task)"
+        raise UsageError(f"--checkpoint {args.checkpoint}: trained on {what}, not known to be {args.task!r}; "
+                         f"expected a checkpoint whose config.json records data.task {args.task!r} (train on "
+                         f"`tax3d generate` demos, or with --data.task {args.task})")
+    if trained_on != args.task:
+        raise UsageError(f"--checkpoint {args.checkpoint}: trained for task {trained_on!r}, not {args.task!r}; "
+                         f"expected --task {trained_on} or a checkpoint trained on {args.task}")
 
 
 def _write_outputs(args: Args, summary: dict, results: list[dict]) -> None:

@@ -2,8 +2,9 @@
 
     tax3d predict --checkpoint checkpoints/tax3d-cd-official-simple --demos DIR --samples 5 --out preds.npz
 
-The npz holds `goals` (D, K, N, 3) world-frame predictions (an object array of (K, N_i, 3) when the demos' point
-counts differ), `files` (D,) and, with ground truth, `rmse` (D, K). The printed RMSE is the mean over demos of the
+The npz holds `goals` (D, K, N, 3) world-frame predictions (where the demos' point counts differ, N is the largest
+and demo i's rows from points[i] on are NaN), `points` (D,) the action points of each demo, `files` (D,) and
+`rmse` (D, K); it loads without allow_pickle. The printed RMSE is the mean over demos of the
 min over samples (docs/reference.md, Evaluation), the mean over all samples and that of each demo's medoid sample
 (the one `tax3d eval --select medoid` executes); `--summary FILE` keeps it as JSON with the command, machine and
 date. `--compare-samplers` scores the same demos, seed and noise with each of COMPARED_SAMPLERS as well (how much an
@@ -114,6 +115,7 @@ def run(args: Args) -> int:
             [rmse(baseline.predict(d["action_pc"], d["anchor_pc"]), d["action_pc"] + d["flow"]) for d in demos]))
     if args.out:
         write_npz(Path(args.out), goals, files, errors)
+        print(f"predictions: {args.out}", file=sys.stderr)
     if args.summary:
         kept = {"command": command_line(args),
                 "date": provenance.today(),
@@ -121,6 +123,7 @@ def run(args: Args) -> int:
                 "checkpoint": str(args.checkpoint), **summary}
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
         write_text(args.summary, json.dumps(kept, indent=1) + "\n")
+        print(f"summary: {args.summary}", file=sys.stderr)
     print(json.dumps(summary))
     return 0
 
@@ -143,16 +146,16 @@ def command_line(args: Args) -> str:
 
 
 def write_npz(path: Path, goals: list[np.ndarray], files: list[Path], errors: np.ndarray) -> None:
-    if len({g.shape for g in goals}) == 1:
-        stacked = np.stack(goals)
-    else:
-        stacked = np.empty(len(goals), dtype=object)
-        stacked[:] = goals
+    """goals (K, N_i, 3) per demo, stacked into one plain array, padded with NaN where the N_i differ."""
+    points = np.array([g.shape[1] for g in goals])
+    stacked = np.full((len(goals), goals[0].shape[0], points.max(), 3), np.nan)
+    for i, g in enumerate(goals):
+        stacked[i, :, :len(g[0])] = g
     path.parent.mkdir(parents=True, exist_ok=True)
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as f:
-            np.savez(f, goals=stacked, files=np.array([str(p) for p in files]), rmse=errors)
+            np.savez(f, goals=stacked, points=points, files=np.array([str(p) for p in files]), rmse=errors)
 
     atomic_write(path, write)
 

@@ -3,8 +3,9 @@
     tax3d train --preset cpu --out runs/cd --data.train DIR --data.val DIR [--model.variant cp --train.steps 2000]
 
 OUT gets config.json (the resolved configuration), log.jsonl (one line per logged step), last/ (config.json,
-model.safetensors and training_state.pt, rewritten atomically at every validation) and best/ (the weights with
-the lowest validation min-of-samples RMSE). A run whose OUT already holds last/ continues from it.
+model.safetensors and training_state.pt, rewritten atomically at every validation and on Ctrl-C) and best/ (the
+weights with the lowest validation min-of-samples RMSE). A run whose OUT already holds last/ continues from it; one
+that starts afresh starts a fresh log.jsonl.
 
 Under torchrun (`torchrun --nproc_per_node N -m tax3d.cli train ...`, docs/scaling.md) each process takes its
 share of every global batch, DistributedDataParallel averages the gradients, and rank 0 alone validates and writes.
@@ -17,7 +18,9 @@ import copy
 import dataclasses
 import json
 import math
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,7 +37,7 @@ from tax3d import devices
 from tax3d import distributed
 from tax3d.checkpoint import STATE_NAME, find_last, read_weights, save_checkpoint, truncate_log
 from tax3d.data.dataset import DemoDataset, demo_files
-from tax3d.data.format import grip_vertices, load_demo
+from tax3d.data.format import data_task, grip_vertices, load_demo
 from tax3d.errors import UsageError
 from tax3d.metrics import coverage_rmse, grip_error, min_of_samples_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
@@ -304,13 +307,42 @@ def training_loss(model: Tax3D, dtype: torch.dtype | None, device: torch.device,
     return DistributedDataParallel(loss, device_ids=[device.index] if device.type == "cuda" else None)
 
 
-def mean_losses(world: distributed.World, losses: dict, out_of_time: bool) -> tuple[dict, bool]:
-    """The losses of the whole global batch (the mean over ranks), and whether any rank ran out of time."""
+def mean_losses(world: distributed.World, losses: dict, *flags: bool) -> tuple[dict, list[bool]]:
+    """The losses of the whole global batch (the mean over ranks), and each flag (out of time, interrupted): whether
+    any rank raised it."""
     if not world.distributed:
-        return {k: float(v.detach()) for k, v in losses.items()}, out_of_time
-    flag = losses["loss"].new_tensor(float(out_of_time))
-    values = distributed.mean(world, torch.stack([*(v.detach().float() for v in losses.values()), flag])).tolist()
-    return dict(zip(losses, values[:-1])), values[-1] > 0
+        return {k: float(v.detach()) for k, v in losses.items()}, list(flags)
+    raised = [losses["loss"].new_tensor(float(flag)) for flag in flags]
+    values = distributed.mean(world, torch.stack([*(v.detach().float() for v in losses.values()), *raised])).tolist()
+    return dict(zip(losses, values[:len(losses)])), [v > 0 for v in values[len(losses):]]
+
+
+class Interruption:
+    """Ctrl-C (SIGINT) during training, deferred: the first sets `requested`, and the loop writes last/ and stops at
+    the end of its step; a second interrupts at once. Installed in the main thread only."""
+
+    def __init__(self):
+        self.requested, self.previous = False, None
+
+    def __enter__(self) -> "Interruption":
+        if threading.current_thread() is threading.main_thread():
+            self.previous = signal.signal(signal.SIGINT, self.handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+
+    def handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        print("\ninterrupt: stopping after this step to save last/ (Ctrl-C again to stop at once)", file=sys.stderr)
+
+
+def ignore_interrupts(worker_id: int) -> None:
+    """A data worker leaves Ctrl-C to the training loop (which stops after its step, then ends the workers)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def make_plan(config: cfg.Config, model: Tax3D, ema, val_demos: list[dict], step: int, elapsed: float,
@@ -386,6 +418,8 @@ def run(args: Args) -> int:
     c = config.train
     if not config.data.train:
         raise UsageError("--data.train: no training demonstration folder given")
+    files = demo_files(config.data.train) + (demo_files(config.data.val) if config.data.val else [])
+    config.data.task = data_task(files, config.data.task)  # what the files name, or "custom"; --data.task agrees
     distributed.check_batch_size(world, c.batch_size)
     if c.threads > 0:
         torch.set_num_threads(c.threads)
@@ -400,7 +434,8 @@ def run(args: Args) -> int:
     val_demos = load_val_demos(config)
     distributed.start(world, device)
     try:
-        code = fit(config, out, last, dataset, val_demos, device, dtype, world)
+        with Interruption() as interruption:
+            code = fit(config, out, last, dataset, val_demos, device, dtype, world, interruption)
     except BaseException:
         distributed.stop(world)
         raise
@@ -409,7 +444,8 @@ def run(args: Args) -> int:
 
 
 def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, val_demos: list[dict],
-        device: torch.device, dtype: torch.dtype | None, world: distributed.World) -> int:
+        device: torch.device, dtype: torch.dtype | None, world: distributed.World,
+        interruption: Interruption | None = None) -> int:
     from tqdm.auto import tqdm
 
     c = config.train
@@ -433,10 +469,10 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     if c.compile:
         loss_fn = torch.compile(loss_fn)
     sampler = StepBatches(len(dataset), c.batch_size, c.seed, step, world.rank, world.size)
-    loader = DataLoader(EpochItems(dataset), batch_sampler=sampler,
-                        num_workers=c.num_workers, persistent_workers=c.num_workers > 0)
+    loader = DataLoader(EpochItems(dataset), batch_sampler=sampler, num_workers=c.num_workers,
+                        persistent_workers=c.num_workers > 0, worker_init_fn=ignore_interrupts)
     batches = iter(loader)
-    log = open(out / "log.jsonl", "a") if world.main else None
+    log = open(out / "log.jsonl", "a" if last is not None else "w") if world.main else None
     bar = tqdm(total=c.steps, initial=step, desc="train", dynamic_ncols=True, disable=not world.main)
     model.train()
     started = time.time() - elapsed
@@ -444,6 +480,17 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     planning = step < plan_step(c)  # a --train.minutes run plans its steps then; any other run checks its length
     rate_from = None  # (step, time) from which the step rate is measured: after the first, slower steps
     replan_from = None  # (step, time) after the plan or the last validation, in the process that made the plan
+    interruption = interruption or Interruption()
+
+    def save_last() -> None:
+        state = {"model": model.net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
+                 "best": best, "elapsed": time.time() - started, "noise_rng": noise_gen.get_state(),
+                 "torch_rng": torch.get_rng_state()}
+        if ema is not None:
+            state["ema"] = ema.state_dict()
+        save_checkpoint(out, "last", model, (ema if ema is not None else model.net).state_dict(), state)
+
+    interrupted = False
     while step < c.steps:
         if planning and rate_from is None and step >= min(10, plan_step(c) - 1):
             rate_from = (step, time.time())
@@ -474,7 +521,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
         bar.update(1)
 
         out_of_time = c.time_limit > 0 and time.time() - started > 60 * c.time_limit
-        values, out_of_time = mean_losses(world, losses, out_of_time)
+        values, (out_of_time, interrupted) = mean_losses(world, losses, out_of_time, interruption.requested)
         record = {"step": step, **values, "lr": lr}
         if planning and step == plan_step(c) and c.minutes == 0:
             planning = False
@@ -492,7 +539,8 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                 cfg.save(config, out / "config.json")
                 print(f"planned {c.steps} steps for {c.minutes:g} minutes ({record['plan']['step_seconds']:.3f} s "
                       f"per step, {record['plan']['val_seconds']:.1f} s per validation)", file=sys.stderr)
-        if step % c.val_every == 0 or step == c.steps or out_of_time:
+        validating = step % c.val_every == 0 or step == c.steps or out_of_time
+        if validating:
             val_started = time.time()
             if world.main:
                 weights = (ema if ema is not None else model.net).state_dict()
@@ -503,13 +551,11 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                     if record["val_rmse"] < best:
                         best = record["val_rmse"]
                         save_checkpoint(out, "best", model, weights, None)
-                state = {"model": model.net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
-                         "best": best, "elapsed": time.time() - started, "noise_rng": noise_gen.get_state(),
-                         "torch_rng": torch.get_rng_state()}
-                if ema is not None:
-                    state["ema"] = ema.state_dict()
-                save_checkpoint(out, "last", model, weights, state)
-                bar.set_postfix(loss=f"{record['loss']:.4f}", val=f"{record.get('val_rmse', float('nan')):.3f}")
+                save_last()
+                shown = {"loss": f"{record['loss']:.4f}"}
+                if "val_rmse" in record:
+                    shown["val"] = f"{record['val_rmse']:.3f}"
+                bar.set_postfix(shown)
             distributed.barrier(world)
             if replan_from is not None and replan_from[0] < step < c.steps and not out_of_time:
                 replan(config, record, step, time.time() - started,
@@ -520,13 +566,21 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
             record["seconds"] = round(time.time() - started, 2)
             log.write(json.dumps(record) + "\n")
             log.flush()
-        if out_of_time:
+        if interrupted and world.main and not validating:
+            save_last()
+        if out_of_time or interrupted:
             break
     bar.close()
     if hasattr(batches, "_shutdown_workers"):  # data workers end here, not in the interpreter's exit
         batches._shutdown_workers()
     if log is not None:
         log.close()
+    if interrupted and step < c.steps:
+        if world.main:
+            print(f"interrupted at step {step} of {c.steps}: saved {out / 'last'}; the same command resumes there",
+                  file=sys.stderr)
+        raise KeyboardInterrupt
+    if world.main:
         minutes = (time.time() - started) / 60
         kept = f"best validation RMSE {best:.3f} in {out / 'best'}" if math.isfinite(best) else f"weights in {out / 'last'}"
         print(f"trained {step} steps in {minutes:.1f} min; {kept}", file=sys.stderr)

@@ -9,6 +9,7 @@ model output (a cross-displacement or goal points, in the variant's frame) back 
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -135,7 +136,8 @@ class DemoDataset(Dataset):
       angle (): the augmentation's z-rotation; pivot (3,): the world point it turned about
       action_idx (Na,) int64: rows of the demo's action cloud; demo_index () int64: position in `files`
       point_weight (Na,), or (Na + Nb,) for SD/SP, only with grip_weight != 1: the loss weight of each target
-        row, grip_weight at the demo's grasped vertices (its `anchors`), 1 elsewhere
+        row, grip_weight at the demo's grasped vertices (its `anchors`), 1 elsewhere; 1 everywhere for a demo
+        without `anchors` (said once on stderr)
     NAC variants get the same items as CD/CP: to_world needs the action points, the model ignores them.
     Item i of epoch e uses demo i % len(files) and a generator seeded by (seed, e, i); call set_epoch(e)
     before each epoch (with DataLoader workers, before the loader's iterator is made).
@@ -181,6 +183,11 @@ class DemoDataset(Dataset):
             self.grip.append(torch.tensor(grip_vertices(demo), dtype=torch.int64))
             self.demos.append(tuple(torch.from_numpy(np.asarray(x, dtype=np.float64)) for x in (
                 demo["action_pc"], demo["anchor_pc"], demo["action_pc"] + demo["flow"])))
+        unweighted = [path for path, grip in zip(self.files, self.grip) if not len(grip)]
+        if self.grip_weight != 1.0 and unweighted:
+            print(f"note: {len(unweighted)} of {len(self.files)} demos (such as {unweighted[0]}) name no grasped "
+                  f"vertices (no anchors key): their points are weighted 1, grip_weight {self.grip_weight:g} applies "
+                  f"to the others", file=sys.stderr)
         if subsets < 0:
             raise UsageError(f"subsets is {subsets}; expected 0 (sample points afresh) or a positive number")
         self.subsets = [self._subsets(d, subsets) for d in range(len(self.demos))] if subsets else None

@@ -92,8 +92,9 @@ def run_episode(
     return episode
 
 
-def episode_to_demo(episode: Episode) -> dict:
-    """The official demo layout (shared/data/tax3d-official/README.md), plus optional traj_* arrays."""
+def episode_to_demo(episode: Episode, task: str = "") -> dict:
+    """The official demo layout (shared/data/tax3d-official/README.md), plus the task's name (when given) and
+    optional traj_* arrays."""
     n = len(episode.action_pc)
     anchors = {
         int(gid): {"pos": episode.initial_grippers[i].astype(np.float64), "vertices": [int(v)]}
@@ -111,6 +112,8 @@ def episode_to_demo(episode: Episode) -> dict:
         "deform_params": dict(episode.cloth_params),
         "anchors": anchors,
     }
+    if task:
+        demo["task"] = task
     demo.update({f"traj_{k}": v for k, v in episode.trajectory.items()})
     return demo
 

@@ -12,7 +12,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from tax3d.data.format import demo_index, is_valid_demo, list_demos, load_demo, save_demo
+from tax3d.data.format import SIM_KEYS, demo_index, is_valid_demo, list_demos, load_demo, save_demo
 from tax3d.errors import UsageError
 from tax3d.parallel import check_backend, run_each
 from tax3d.sim.bag import parse_bag_params
@@ -126,7 +126,7 @@ def run_job(job: Job) -> JobResult:
             episodes.append((ep, ok))
         if all(ok for _, ok in episodes):
             for name, (ep, _) in zip(job.names, episodes):
-                save_demo(Path(job.out) / name, episode_to_demo(ep))
+                save_demo(Path(job.out) / name, episode_to_demo(ep, job.task))
                 if job.render != "none" and ep.frames:
                     save_frames(ep.frames, Path(job.out) / "renders" / Path(name).stem, job.render)
                 result.written.append(name)
@@ -198,7 +198,7 @@ def generate(args: Args, progress: bool = True) -> dict:
     for job in jobs:
         job.out, job.max_attempts, job.trajectories = str(args.out), args.max_attempts, args.trajectories
         job.render, job.render_every, job.steps = args.render, max(1, args.render_every), args.steps
-    todo = [j for j in jobs if not all(is_valid_demo(Path(args.out) / n) for n in j.names)]
+    todo = [j for j in jobs if not all(is_valid_demo(Path(args.out) / n, SIM_KEYS + ("anchors",)) for n in j.names)]
     stats = {"planned": sum(len(j.names) for j in jobs), "skipped": sum(len(j.names) for j in jobs if j not in todo)}
     results = _run(todo, args, progress)
     stats.update(
@@ -225,7 +225,7 @@ def _worst(figures: list[dict]) -> dict:
 def _run(jobs: list[Job], args: Args, progress: bool) -> list[JobResult]:
     from tqdm import tqdm
 
-    bar = tqdm(total=len(jobs), desc="episodes", unit="cloth", disable=not progress, file=sys.stderr)
+    bar = tqdm(total=len(jobs), desc="episodes", unit="cloth", disable=not progress or not jobs, file=sys.stderr)
     results = []
     for _, result, error in run_each(run_job, jobs, args.workers, args.backend, args.address):
         if error is not None:

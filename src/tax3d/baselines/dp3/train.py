@@ -29,6 +29,8 @@ from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
 from tax3d.baselines.dp3.model import DP3
 from tax3d.config import apply_overrides
+from tax3d.data.dataset import demo_files
+from tax3d.data.format import data_task
 from tax3d.devices import pick_device
 from tax3d.errors import UsageError
 from tax3d.options import OutputFolder
@@ -94,6 +96,7 @@ def run(args: Args) -> int:
     if not config.data.train:
         raise UsageError("--data.train: no demonstration folder given; expected folders of demos written with "
                          "`tax3d generate --trajectories`")
+    config.data.task = data_task(demo_files(config.data.train), config.data.task)
     m = config.model
     dataset = TrajectoryDataset(config.data.train, m.horizon, m.n_obs_steps, config.data.num_action_points,
                                 config.data.num_anchor_points)
