@@ -17,8 +17,8 @@ from typing import Annotated, Literal
 from tax3d.atomic import write_json, write_text
 from tax3d.errors import UsageError
 from tax3d.options import NonNegative, OutputFolder, Positive
+from tax3d.table import ROW_KIND, ROW_VERSION
 
-ROW_KIND, ROW_VERSION = "table-row", 1
 
 
 @dataclass

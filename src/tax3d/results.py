@@ -249,9 +249,22 @@ class Page:
         return lines
 
     # -- the page -------------------------------------------------------------------------------------------------
+    def protocol(self) -> list[str]:
+        """The paper's table beside the rows of `tax3d benchmark` (docs/results/table/TASK/), when there are any."""
+        from tax3d import table
+
+        rows = table.load_rows(self.root / "table" / self.spec.get("task", ""))
+        if not rows:
+            return []
+        return ["## The paper's table under one protocol", "", *table.markdown(self.spec["task"], self.paper, rows),
+                *fold("How each row was made", table.commands(rows)),
+                "## Earlier rows", "", "The rows below were trained with earlier recipes, their weights and settings "
+                "chosen on the `unseen` and `ood` episodes demo_0-39; the table above replaces them row by row.", ""]
+
     def markdown(self) -> str:
         spec = self.spec
-        lines = [f"# {spec['title']}", "", self.fill(spec["verdict"]), "", *self.table(spec["headline"]), "",
+        lines = [f"# {spec['title']}", "", *self.protocol(), self.fill(spec["verdict"]), "",
+                 *self.table(spec["headline"]), "",
                  f"![success per split]({self.name}.png)", "", self.fill(spec["definitions"]), ""]
         for note in spec.get("note", []):
             lines += self.section(note)

@@ -1,0 +1,88 @@
+"""The paper's table of a task beside ours, row by row, from the rows that `tax3d benchmark --keep` writes.
+
+Rows are kept as docs/results/table/TASK/DEMOS/VARIANT.json (kind "table-row"): one protocol for all of them
+(weights chosen on `val`, scored once on the test episodes). Every row of the paper's table is listed; a row we
+have not run yet says so.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from tax3d.errors import UsageError
+
+ROW_KIND, ROW_VERSION = "table-row", 1
+PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": "CD-NAC", "cp_nac": "CP-NAC",
+              "sd": "SD", "sp": "SP", "rd": "RD", "rp": "RP", "dp3": "DP3"}
+ORDER = ("CD", "CP", "CD-W", "CP-W", "CD-NAC", "CP-NAC", "SD", "SP", "RD", "RP", "DP3")
+NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP"}
+
+
+def load_rows(folder: Path) -> dict[int, dict[str, dict]]:
+    """{training demos: {paper key: row}} of a task's kept rows; a file of another kind or version is an error."""
+    rows: dict[int, dict[str, dict]] = {}
+    for path in sorted(folder.glob("*/*.json")) if folder.is_dir() else []:
+        row = json.loads(path.read_text())
+        if row.get("kind") != ROW_KIND or row.get("version") != ROW_VERSION:
+            raise UsageError(f"{path}: kind {row.get('kind')!r} version {row.get('version')!r}; expected a "
+                             f"{ROW_KIND!r} of version {ROW_VERSION}, as `tax3d benchmark --keep` writes")
+        rows.setdefault(int(path.parent.name), {})[PAPER_KEYS[row["variant"]]] = row
+    return rows
+
+
+def _success(row: dict | None, split: str) -> str:
+    if row is None:
+        return "not run yet"
+    s = row["splits"][split]
+    low, high = s["success_ci95"]
+    return f"**{s['success_rate']:.2f}** ({low:.2f}-{high:.2f})"
+
+
+def _rmse(row: dict | None, split: str) -> str:
+    value = None if row is None else row["splits"][split].get("rmse")
+    return "-" if value is None else f"{value:.3f}"
+
+
+def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
+    """One table per training-set size: each of the paper's rows, its success and RMSE beside ours."""
+    paper_rows = paper.get("rows", {})
+    keys = [k for k in ORDER if k in paper_rows]
+    lines = []
+    paper_demos = paper.get("demos", [None])[0]
+    for demos in sorted(rows):
+        kept = rows[demos]
+        first = next(iter(kept.values()))
+        like = "the paper's count" if demos == paper_demos else f"the paper trains on {paper_demos}"
+        lines += [f"**{demos} training demonstrations** ({like}); every row `--preset {first['preset']}`, "
+                  f"{first['minutes']:g}-minute plans on one core, weights chosen on `val`, scored once on "
+                  f"{first['test']['episodes']} test episodes a split (demo_{first['test']['first_index']} on), "
+                  f"{first['test']['samples']} goal samples an episode; success with its 95% Wilson interval:", "",
+                  "| row | success unseen | paper | success ood | paper | RMSE unseen | paper | RMSE ood | paper |",
+                  "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+        for key in keys:
+            row, theirs = kept.get(key), paper_rows[key]
+            rmse = theirs.get("rmse", (None, None, None))
+            cell = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
+            lines.append(f"| {NAMES.get(key, key)} | {_success(row, 'unseen')} | {theirs['success'][1]:.2f} | "
+                         f"{_success(row, 'ood')} | {theirs['success'][2]:.2f} | {_rmse(row, 'unseen')} | "
+                         f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} |")
+        lines.append("")
+    return lines
+
+
+def commands(rows: dict[int, dict[str, dict]]) -> list[str]:
+    """Each kept row's command, machine, date, weights and how often its test episodes were scored."""
+    lines = []
+    for demos in sorted(rows):
+        for key in ORDER:
+            row = rows[demos].get(key)
+            if row is None:
+                continue
+            best = min(row["validations"], key=lambda v: v["val_rmse"]) if row["validations"] else None
+            chosen = (f"best val RMSE {best['val_rmse']:.3f} at step {best['step']:,} of "
+                      f"{row['validations'][-1]['step']:,}" if best else row["weights_chosen_on"])
+            lines.append(f"- {NAMES.get(key, key)}, {demos} demos: `{row['command']}` on {row['machine']}, "
+                         f"{row['date']}; weights `{row['weights']}` ({chosen}), sha256 "
+                         f"`{row['weights_sha256'][:12]}`; test episodes scored {row['test']['scorings']} time(s)")
+    return lines
