@@ -35,7 +35,9 @@ def kept_commands() -> list:
         for source in declared.get("source", []):
             if source.get("config"):
                 run = json.loads((results / source["summary"]).read_text())
-                command = " ".join([run.get("command", ""), run.get("resumed_with", "")])
+                # today_options: what today's preset needs beside the recorded command to make the same configuration
+                command = " ".join([run.get("command", ""), run.get("resumed_with", ""),
+                                    source.get("today_options", "")])
                 if TRAIN_COMMAND.match(command):
                     found.append(pytest.param(results / source["config"], command, id=f"{page.stem}:{source['id']}"))
         for row in declared.get("row", []):
