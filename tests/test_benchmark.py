@@ -68,3 +68,33 @@ def test_one_budget_and_the_multimodal_recipe(tmp_path, capsys):
     assert "--steps 5: not with --minutes 3" in capsys.readouterr().err
     assert preset_of(Args(task="hangproccloth-multimodal")) == "cpu-multimodal"
     assert preset_of(Args(task="hangbag")) == "cpu" and preset_of(Args(task="hangbag", preset="paper")) == "paper"
+
+
+def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_path, monkeypatch):
+    """A dp3 row adds the train demos with their trajectories (same split, same indices) and trains DP3 on them
+    for the table's minutes; the other rows' data is unchanged."""
+    from tax3d import benchmark
+    from tax3d.sim import generate as gen
+
+    calls = []
+    monkeypatch.setattr(gen, "generate", lambda a, progress=True: calls.append(a) or {"failed": []})
+    args = Args(task="hangproccloth-unimodal", variants="cd,dp3", out=tmp_path, num_train=8, minutes=30)
+    assert benchmark._check(args) == ["cd", "dp3"]
+    benchmark._generate_data(args)
+    plan = [(c.split, c.out.name, c.first_index, c.num, c.trajectories) for c in calls]
+    assert plan == [("train", "train", 0, 8, False), ("val", "val", 0, 40, False), ("unseen", "unseen", 100, 40, False),
+                    ("ood", "ood", 100, 40, False), ("train", "train-traj", 0, 8, True)]
+    trained = []
+    from tax3d.baselines.dp3 import train as dp3_train
+
+    def fake_run(a):
+        trained.append(a)
+        (tmp_path / "dp3" / "train").mkdir(parents=True)
+        return 0
+
+    monkeypatch.setattr(dp3_train, "run", fake_run)
+    (tmp_path / "data" / "train-traj").mkdir(parents=True)
+    for i in range(8):
+        (tmp_path / "data" / "train-traj" / f"demo_{i}.npz").write_bytes(b"")
+    assert benchmark._train(args, "dp3", tmp_path / "data").name == "last"
+    assert trained[0].train.minutes == 30 and trained[0].data.task == "hangproccloth-unimodal"

@@ -237,6 +237,23 @@ def test_train_command_writes_a_checkpoint_and_resumes_exactly(tmp_path, demos, 
         assert torch.allclose(a, b, atol=1e-6), name
 
 
+def test_a_minutes_plan_fixes_the_steps_from_the_measured_rate(tmp_path, demos, monkeypatch, capsys):
+    """--train.minutes M: the first steps are timed and train.steps becomes what fits in M minutes (DP3 gets the
+    wall time of the table's TAX3D rows), recorded in config.json; the run ends at that step."""
+    import time
+
+    from tax3d.baselines.dp3 import train as dp3_train
+
+    clock = iter(range(10_000))
+    monkeypatch.setattr(time, "time", lambda: float(next(clock)))  # each call one second later
+    monkeypatch.setitem(cfg.PRESETS, "cpu", lambda: tiny_config())
+    out = tmp_path / "run"
+    assert main(["train-dp3", "--data.train", str(demos), "--preset", "cpu", "--device", "cpu", "--data.task",
+                 "hangproccloth-simple", "--train.minutes", "2", "--out", str(out)]) == 0
+    steps = json.loads((out / "config.json").read_text())["train"]["steps"]
+    assert dp3_train.PLAN_STEPS < steps < 120 and [r["step"] for r in read_log(out)][-1] == steps
+    assert f"planned {steps} steps for 2 minutes" in capsys.readouterr().err
+
 
 def test_bad_inputs(tmp_path, capsys):
     with pytest.raises(UsageError, match="no such checkpoint"):

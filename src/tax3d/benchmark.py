@@ -27,7 +27,8 @@ class Args:
 
     task: str = "hangproccloth-simple"
     variants: str = "cd,cp"
-    """comma-separated rows: cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd, rp"""
+    """comma-separated rows: cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd, rp, dp3 (the baseline, trained on the
+    same demonstrations with their trajectories, for the same minutes; its last weights)"""
     out: Annotated[Path, OutputFolder] = Path("runs/benchmark")
     """output folder: data/<split>, <variant>/train, <variant>/eval, results.md"""
     preset: Literal["cpu", "cpu-multimodal", "paper"] | None = None
@@ -72,15 +73,18 @@ def _generate_data(args: Args) -> Path:
 
     task = get_task(args.task)
     root = args.out / "data" if args.data is None else args.data
-    plan = [("train", 0, args.num_train or task.sizes["train"]), ("val", 0, args.num_val),
-            ("unseen", args.first_index, args.episodes), ("ood", args.first_index, args.episodes)]
-    for split, first, num in plan:
-        print(f"[benchmark] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / split}",
+    num_train = args.num_train or task.sizes["train"]
+    plan = [("train", "train", 0, num_train), ("val", "val", 0, args.num_val),
+            ("unseen", "unseen", args.first_index, args.episodes), ("ood", "ood", args.first_index, args.episodes)]
+    if "dp3" in args.variants:
+        plan.append(("train", "train-traj", 0, num_train))  # the same demonstrations, with their trajectories
+    for split, folder, first, num in plan:
+        print(f"[benchmark] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / folder}",
               flush=True)
-        stats = generate(GenerateArgs(task=args.task, split=split, first_index=first, num=num, out=root / split,
-                                      workers=args.workers), progress=False)
+        stats = generate(GenerateArgs(task=args.task, split=split, first_index=first, num=num, out=root / folder,
+                                      workers=args.workers, trajectories=folder == "train-traj"), progress=False)
         if stats["failed"]:
-            raise UsageError(f"--data {root / split}: {len(stats['failed'])} demos failed after every attempt "
+            raise UsageError(f"--data {root / folder}: {len(stats['failed'])} demos failed after every attempt "
                              f"({' '.join(stats['failed'][:3])}); expected every index of the table")
     return root
 
@@ -101,9 +105,11 @@ def _train(args: Args, variant: str, data: Path) -> Path:
     from tax3d.sim.tasks import get_task
 
     out = args.out / variant / "train"
+    num = args.num_train or get_task(args.task).sizes["train"]
+    if variant == "dp3":
+        return _train_dp3(args, out, _train_files(data / "train-traj", num))
     if not (out / "DONE").exists():
         print(f"[benchmark] training {variant} -> {out}", flush=True)
-        num = args.num_train or get_task(args.task).sizes["train"]
         train.run(train.Args(
             out=str(out), preset=preset_of(args),
             model=cfg.ModelOverrides(**_only(cfg.ModelOverrides, variant=variant)),
@@ -114,6 +120,23 @@ def _train(args: Args, variant: str, data: Path) -> Path:
         ))  # fmt: skip
         write_text(out / "DONE", "finished\n")
     return out / "best" if (out / "best").is_dir() else out / "last"
+
+
+def _train_dp3(args: Args, out: Path, files: tuple[str, ...]) -> Path:
+    """DP3 on the same demonstrations (with trajectories) for the same minutes; it validates nothing: last/."""
+    from tax3d.baselines.dp3 import config as dp3_cfg
+    from tax3d.baselines.dp3 import train as dp3_train
+
+    if not (out / "DONE").exists():
+        print(f"[benchmark] training dp3 -> {out}", flush=True)
+        dp3_train.run(dp3_train.Args(
+            out=str(out), preset="paper" if args.preset == "paper" else "cpu", device=args.device,
+            data=dp3_cfg.DataOverrides(**_only(dp3_cfg.DataOverrides, train=files, task=args.task)),
+            train=dp3_cfg.TrainOverrides(**_only(dp3_cfg.TrainOverrides, steps=args.steps,
+                                                 minutes=args.minutes if args.minutes > 0 else None)),
+        ))  # fmt: skip
+        write_text(out / "DONE", "finished\n")
+    return out / "last"
 
 
 def _only(cls, **values) -> dict:
@@ -140,8 +163,9 @@ def _score(args: Args, variant: str, checkpoint: Path, data: Path) -> dict:
     validations = [{"step": r["step"], "val_rmse": r["val_rmse"]} for r in read_log(run / "log.jsonl")
                    if "val_rmse" in r]
     config = json.loads((checkpoint / "config.json").read_text())
+    preset = preset_of(args) if variant != "dp3" else ("paper" if args.preset == "paper" else "cpu")
     row = {"kind": ROW_KIND, "version": ROW_VERSION, "task": args.task, "variant": variant,
-           "preset": preset_of(args), "minutes": args.minutes, "num_train": args.num_train,
+           "preset": preset, "minutes": args.minutes, "num_train": args.num_train,
            "weights": checkpoint.name, "weights_chosen_on": "val" if checkpoint.name == "best" else "last step",
            "weights_sha256": summary["weights_sha256"], "validations": validations, "config": config,
            "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
@@ -163,7 +187,8 @@ def _check(args: Args) -> list[str]:
     pick_device(args.device)  # a bad --device fails before any demonstration is generated
     if args.steps is not None and args.minutes > 0:
         raise UsageError(f"--steps {args.steps}: not with --minutes {args.minutes:g}; expected one budget")
-    variants = [variant_spec(v.strip()).name for v in args.variants.split(",") if v.strip()]
+    variants = [v.strip() if v.strip() == "dp3" else variant_spec(v.strip()).name
+                for v in args.variants.split(",") if v.strip()]
     if not variants:
         raise UsageError("--variants: expected at least one variant")
     if args.keep is not None:

@@ -38,6 +38,7 @@ from tax3d.train import STATE_NAME, cosine_lr, find_last, save_checkpoint, trunc
 
 ADAM_BETAS = (0.95, 0.999)  # DP3's optimiser settings (docs/dp3.md)
 EMA_POWER, EMA_MAX = 0.75, 0.9999  # DP3's EMA: decay 1 - (1 + step)^-0.75, capped
+PLAN_STEPS = 20  # a --train.minutes run times these steps (after the first, slower one) to fix train.steps
 
 
 @dataclass
@@ -123,6 +124,9 @@ def run(args: Args) -> int:
     bar = tqdm(total=c.steps, initial=step, desc="train-dp3", dynamic_ncols=True)
     model.train()
     started = time.time() - elapsed
+    planning = c.minutes > 0 and step < PLAN_STEPS
+    if planning:
+        c.steps = max(c.steps, PLAN_STEPS)
     while step < c.steps:
         batch, t, noise = step_batch(dataset, config, step, device)
         lr = cosine_lr(step, c.lr, c.warmup_steps, c.steps)
@@ -133,6 +137,16 @@ def run(args: Args) -> int:
         loss.backward()
         optimizer.step()
         step += 1
+        if planning and step == 1:
+            timed_from = time.time()
+        if planning and step == PLAN_STEPS:
+            planning = False
+            per_step = (time.time() - timed_from) / (PLAN_STEPS - 1)
+            c.steps = max(PLAN_STEPS, int((60 * c.minutes - (time.time() - started)) / per_step) + PLAN_STEPS)
+            c.save_every = min(c.save_every, c.steps)
+            write_text(out / "config.json", cfg.dumps(config))
+            bar.total = c.steps
+            print(f"planned {c.steps} steps for {c.minutes:g} minutes ({per_step:.3f} s per step)", file=sys.stderr)
         with torch.no_grad():
             decay = ema_decay(step)
             for e, p in zip(ema.parameters(), model.parameters()):
