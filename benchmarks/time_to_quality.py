@@ -136,7 +136,7 @@ def main() -> int:
         print(f"time_to_quality: run(s) {', '.join(failed)} failed; see {args.out}/NAME.stderr", file=sys.stderr)
         return 1
     result = {
-        "benchmark": "time_to_quality",
+        "benchmark": "time_to_quality", "command": "python benchmarks/time_to_quality.py " + shlex.join(sys.argv[1:]),
         "cores_per_run": 1 if len(args.run) <= len(cores) else len(cores) / len(args.run),
         "minutes": args.minutes, "preset": args.preset, "train": args.train, "val": args.val,
         "val_demos": args.val_demos, "val_samples": args.val_samples, "machine": provenance.machine(),

@@ -130,6 +130,39 @@ def profile(config: cfg.Config, train: list[str] | None, steps: int, peaks: dict
             "fraction_of_bf16_peak": flops / total / peaks["bf16"]}
 
 
+def top_ops(config: cfg.Config, steps: int = 10, top: int = 8) -> list[dict]:
+    """The operators that take the most time in `steps` steps (torch.profiler, self CPU time), with their share."""
+    from torch.profiler import ProfilerActivity, profile as torch_profile
+
+    step = Step(config, random_batches(config))
+    for _ in range(3):
+        step()
+    with torch_profile(activities=[ProfilerActivity.CPU]) as prof:
+        for _ in range(steps):
+            step()
+    events = sorted(prof.key_averages(), key=lambda e: e.self_cpu_time_total, reverse=True)
+    total = sum(e.self_cpu_time_total for e in events)
+    return [{"op": e.key, "share": e.self_cpu_time_total / total} for e in events[:top]]
+
+
+def threads(config: cfg.Config, rounds: int) -> dict:
+    """One run on two threads against one thread: two one-thread runs side by side get twice the one-thread rate."""
+    step = Step(config, random_batches(config))
+    times = {1: [], 2: []}
+    for n in times:
+        torch.set_num_threads(n)
+        step()
+    for _ in range(rounds):
+        for n in times:
+            torch.set_num_threads(n)
+            start = time.perf_counter()
+            step()
+            times[n].append(time.perf_counter() - start)
+    torch.set_num_threads(1)
+    one, two = float(np.median(times[1])), float(np.median(times[2]))
+    return {"step_seconds_1_thread": one, "step_seconds_2_threads": two, "speedup_2_threads": one / two}
+
+
 def levers(config: cfg.Config, rounds: int) -> dict:
     """Seconds per step without data (random batches), each lever interleaved with the others round by round."""
     import dataclasses
@@ -181,10 +214,13 @@ def main(argv=None) -> int:
             config = cfg.preset(name)
             if workers is not None:
                 config.train.num_workers = workers
-            key = name if workers is None else f"{name}, {workers} data workers"
+            key = name if workers is None else f"{name}-{workers}workers"
             result["presets"][key] = profile(config, args.train, args.steps, peaks)
     if args.levers:
-        result["levers"] = levers(cfg.preset(args.presets.split(",")[0]), args.rounds)
+        first = cfg.preset(args.presets.split(",")[0])
+        result["levers"] = levers(first, args.rounds)
+        result["top_ops"] = top_ops(first)
+        result["threads"] = threads(first, args.rounds)
     result["peaks_again"] = {"fp32": matmul_peak(torch.float32), "bf16": matmul_peak(torch.bfloat16)}
     text = json.dumps(result, indent=2)
     if args.out:
