@@ -220,7 +220,7 @@ def main(argv=None) -> int:
         first = cfg.preset(args.presets.split(",")[0])
         result["levers"] = levers(first, args.rounds)
         result["top_ops"] = top_ops(first)
-        result["threads"] = threads(first, args.rounds)
+        result["two_threads"] = threads(first, args.rounds)
     result["peaks_again"] = {"fp32": matmul_peak(torch.float32), "bf16": matmul_peak(torch.bfloat16)}
     text = json.dumps(result, indent=2)
     if args.out:

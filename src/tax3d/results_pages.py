@@ -298,8 +298,8 @@ class SpeedPage(MeasurementPage):
                   "the preset |", "| --- | --- | --- | --- |"]
         lines += [f"| {labels.get(k, k)} | {v['step_seconds']:.3f} | {v['speedup']:.2f} | "
                   f"{v['samples_per_second_ratio']:.2f} |" for k, v in levers.items() if isinstance(v, dict)]
-        if profile.get("threads"):
-            t = profile["threads"]
+        if profile.get("two_threads"):
+            t = profile["two_threads"]
             lines += [f"| one run on two threads | {t['step_seconds_2_threads']:.3f} | {t['speedup_2_threads']:.2f} "
                       f"(two runs of one thread each: 2 steps for every one-thread step) | - |"]
         lines += ["", *self.notes("levers"), "## Side by side at equal wall time", ""]
