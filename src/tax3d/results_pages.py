@@ -30,7 +30,7 @@ class MeasurementPage(Page):
                 for line in self.section(note)]
 
     def sources(self, table: str) -> list[dict]:
-        return [self.data[s["id"]] | {"file": s["summary"]} for s in self.spec.get("source", [])
+        return [self.data[s["id"]] | {"file": s["summary"], "label": s["label"]} for s in self.spec.get("source", [])
                 if s.get("table") == table]
 
     def files(self) -> dict:
