@@ -176,6 +176,33 @@ def test_empty_episodes_still_write_the_table(tmp_path):
     assert (tmp_path / "empty" / "images" / "overview.png").is_file()
 
 
+def test_fresh_poses_promise_no_true_goal(tmp_path):
+    """Episodes on fresh anchor poses have no true goal: the page says why RMSE is '-' and names no green cloud, and
+    the overview's legend has no true-goal entry."""
+    import numpy as np
+
+    from tax3d.report import NO_TRUE_GOAL, overview_png
+
+    rng = np.random.default_rng(0)
+    fresh = [_episode(rng, "unseen", f"episode_{i}", True, true_goal=False) for i in range(2)]
+    summary = _summary()
+    for split in summary["splits"].values():
+        split["rmse"] = None
+    page = write_report(tmp_path / "fresh", summary, fresh).read_text()
+    assert NO_TRUE_GOAL in page and "true goal green" not in page
+    assert "true goal green" in write_report(tmp_path / "demos", _summary(), _episodes()).read_text()
+    from matplotlib.figure import Figure
+
+    labels = []
+    real = Figure.legend
+    Figure.legend = lambda self, handles, names, **kw: labels.extend(names) or real(self, handles, names, **kw)
+    try:
+        overview_png(tmp_path / "o.png", fresh, ["unseen"])
+    finally:
+        Figure.legend = real
+    assert "true goal" not in labels and "predicted goal" in labels
+
+
 CHROMIUM = next((p for p in ("/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome")
                  if Path(p).exists()), None)
 # After layout, the page lists each episode row's plot and picture boxes (left, right, width) in <pre id="layout">.

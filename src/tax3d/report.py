@@ -103,13 +103,21 @@ def results_markdown(summary: dict, title: str = "TAX3D evaluation") -> str:
     return "\n".join(lines) + "\n"
 
 
+NO_TRUE_GOAL = ("These anchor poses are fresh: no demonstration was made on them, so there is no true goal to "
+                "show and RMSE, which measures the predicted goal against it, is not defined (-).")
+
+
 def _results_html(summary: dict) -> str:
     names, rows = _table_rows(summary)
     head = "".join(f"<th>{html.escape(n)}</th>" for n in names)
     body = "".join(
         f"<tr><th>{html.escape(label)}</th>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>"
         for label, cells in rows)
-    return f'<table class="results"><thead><tr><th></th>{head}</tr></thead><tbody>{body}</tbody></table>'
+    table = f'<table class="results"><thead><tr><th></th>{head}</tr></thead><tbody>{body}</tbody></table>'
+    splits = summary.get("splits", {})
+    if splits and all(s.get("rmse") is None for s in splits.values()):
+        table += f"<p>{NO_TRUE_GOAL}</p>"
+    return table
 
 
 def _provenance_html(summary: dict) -> str:
@@ -141,10 +149,12 @@ def _cube_limits(ax, clouds: list[np.ndarray], margin: float = 0.05, zoom: float
     ax.set_box_aspect((1, 1, 1), zoom=zoom)
 
 
-def _scatter(ax, points: np.ndarray, color, size: float, label: str | None = None, alpha: float = 1.0) -> None:
+def _scatter(ax, points: np.ndarray, color, size: float, label: str | None = None, alpha: float = 1.0,
+             absent: bool = False) -> None:
+    """Points with a legend entry; a cloud that is absent (no true goal on a fresh pose) gets no entry."""
     if len(points):
         ax.scatter(*points.T, s=size, c=[color], label=label, alpha=alpha, depthshade=False, linewidths=0)
-    elif label:  # keep the legend entry even when every point was dropped
+    elif label and not absent:  # keep the legend entry even when every point was dropped
         ax.scatter([], [], [], s=size, c=[color], label=label)
 
 
@@ -175,7 +185,8 @@ def released_png(path: Path, episode: dict) -> Path:
     anchor, released, true_goal = (_finite(episode.get(k)) for k in ("anchor_pc", "released_pc", "true_goal"))
     _scatter(ax, anchor, ANCHOR_COLOR, 1.5, "anchor")
     if len(true_goal):
-        _scatter(ax, true_goal, TRUE_GOAL_COLOR, 1.5, "true goal", alpha=0.25)
+        _scatter(ax, true_goal, TRUE_GOAL_COLOR, 1.5, "true goal", alpha=0.25,
+                 absent=episode.get("true_goal") is None)
     _scatter(ax, released, ACTION_COLOR, 2.5, "cloth after release")
     _cube_limits(ax, [anchor, released, true_goal], zoom=1.1)
     _style_axes(ax, _episode_label(episode))
@@ -211,7 +222,7 @@ def overview_png(path: Path, episodes: list[dict], splits: list[str]) -> Path:
         goal = _finite(samples[0]) if len(samples) else _finite(None)
         _scatter(ax, anchor, ANCHOR_COLOR, 1.5, "anchor")
         _scatter(ax, action, ACTION_COLOR, 2.5, "action (initial cloth)")
-        _scatter(ax, true_goal, TRUE_GOAL_COLOR, 2.5, "true goal")
+        _scatter(ax, true_goal, TRUE_GOAL_COLOR, 2.5, "true goal", absent=episode.get("true_goal") is None)
         _scatter(ax, goal, _rgb01(GOAL_COLORS[0]), 2.5, "predicted goal")
         _cube_limits(ax, [anchor, action, goal, true_goal], zoom=1.08)
         _style_axes(ax, _episode_label(episode), fontsize=10)
@@ -452,9 +463,11 @@ def report_html(summary: dict, episodes: list[dict], title: str, figures: dict[s
     import plotly.offline
 
     splits = _split_order(summary, episodes)
+    true_goals = any(e.get("true_goal") is not None for e in episodes)
     body = [f"<h1>{html.escape(title)}</h1>", _provenance_html(summary), "<h2>Results</h2>", _results_html(summary),
             "<h2>Episodes</h2>", '<p>Anchor grey, action (initial cloth) blue, predicted goal samples orange to red, '
-            'true goal green; the two grip vertices of the first sample in black. Failures are shown first.</p>']
+            + ("true goal green; " if true_goals else "") + 'the two grip vertices of the first sample in black. '
+            'Failures are shown first.</p>']
     body += [_split_section(split, episodes, figures.get(split, []), images) for split in splits]
     if not episodes:
         body.append("<p>No episodes.</p>")
