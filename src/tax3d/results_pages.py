@@ -317,6 +317,17 @@ class SpeedPage(MeasurementPage):
                              + " | ".join(cells + ["-"] * (marks - len(cells))) + " |")
             lines += ["", f"Measured by `{pair['command']}` on {pair['machine']}, {pair['date']} "
                           f"([{pair['file']}]({pair['file']})).", ""]
+        policy = self.sources("policy")
+        if policy:
+            lines += ["The policy with each run's kept weights (`best/`, chosen on the same val demos), 40 `val` episodes, "
+                      "success with its 95% Wilson interval:", "", "| run | success | goal RMSE | weights |",
+                      "| --- | --- | --- | --- |"]
+            for p in policy:
+                split = p["splits"]["val"]
+                low, high = split["success_ci95"]
+                lines.append(f"| {p['label']} | {split['success_rate']:.2f} ({low:.2f}-{high:.2f}) | {split['rmse']:.3f} "
+                             f"| `{p['weights_sha256'][:12]}` |")
+            lines += ["", *[f"- {p['label']}: {provenance(p)} ([{p['file']}]({p['file']}))." for p in policy], ""]
         lines += self.notes("pairs")
         return "\n".join(lines).rstrip() + "\n"
 
