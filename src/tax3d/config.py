@@ -117,14 +117,10 @@ class TrainConfig:
     """validate on the first this many val demos (0: all)"""
     minutes: Annotated[float, NonNegative] = 0.0
     """plan the run to end after this many minutes on this machine: the step rate measured over the first steps
-    fixes train.steps (and so the cosine schedule) then, and the plan is recorded in config.json (0: use steps)"""
+    fixes train.steps (and so the cosine schedule) then, timed again at every validation (tax3d.plan); config.json
+    records the planned steps (0: use steps)"""
     validations: Annotated[int, NonNegative] = 0
     """with train.minutes: validate this many times, evenly over the planned steps (0: every val_every steps)"""
-    replan_step: Annotated[int, NonNegative] = 0
-    """set by a --train.minutes run timed again at a validation: from this step the cosine decay goes on
-    from replan_progress to its end at train.steps, so the learning rate neither jumps nor rises (0: not re-planned)"""
-    replan_progress: Annotated[float, NonNegative] = 0.0
-    """the cosine decay's progress (0 to 1) at replan_step"""
     time_limit: Annotated[float, NonNegative] = 0.0
     """stop after this many minutes of training, as if at the last step, the schedule unchanged (unlike
     train.minutes, the learning rate has not decayed then; 0: no limit)"""
@@ -202,6 +198,11 @@ def preset(name: str) -> Config:
 METADATA = ("weights_sha256",)
 """top-level keys of a checkpoint's config.json beside the sections"""
 _SECTIONS = {"model": ModelConfig, "diffusion": DiffusionConfig, "data": DataConfig, "train": TrainConfig}
+RUN_STATE = object()
+RETIRED = {("train", "replan_step"): RUN_STATE, ("train", "replan_progress"): RUN_STATE}
+"""fields of earlier versions' config.json, by the value at which each changes nothing: accepted there and dropped,
+any other value an error naming the field. RUN_STATE marks the knee of a re-planned --train.minutes run, kept in
+config.json by earlier versions and in the training state now (tax3d.plan): accepted at any value and dropped."""
 
 
 def to_dict(config: Config) -> dict:
@@ -216,7 +217,22 @@ def from_dict(data: dict, where: str = "config") -> Config:
     missing = [name for name in _SECTIONS if name not in data]
     if missing:
         raise UsageError(f"{where}: no '{missing[0]}' section; expected the sections {', '.join(_SECTIONS)}")
-    return validate(Config(**parse_sections(data, _SECTIONS, where, ignore=METADATA)), where)
+    return validate(Config(**parse_sections(without_retired(data, where), _SECTIONS, where, ignore=METADATA)), where)
+
+
+def without_retired(data: dict, where: str) -> dict:
+    """data without the RETIRED fields; a retired field at a value other than its neutral one is an error."""
+    data = {name: dict(values) if name in _SECTIONS and isinstance(values, dict) else values
+            for name, values in data.items()}
+    for (section, name), neutral in RETIRED.items():
+        values = data.get(section)
+        if not isinstance(values, dict):
+            continue
+        if name in values and neutral is not RUN_STATE and values[name] != neutral:
+            raise UsageError(f"{where}: {section}.{name} is {values[name]!r}: that option was retired; a config "
+                             f"from an earlier version loads only with {section}.{name} = {neutral!r}")
+        values.pop(name, None)
+    return data
 
 
 def parse_sections(data: dict, sections: dict, where: str, ignore=()) -> dict:
