@@ -343,7 +343,7 @@ def run(args: Args) -> int:
     dataset = DemoDataset(config.data.train, config.model.variant, train=True, rotate=config.data.rotate,
                           num_action_points=config.data.num_action_points,
                           num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size,
-                          target_scale=config.data.target_scale, seed=c.seed, subsets=config.data.subsets,
+                          seed=c.seed, subsets=config.data.subsets,
                           grip_weight=config.data.grip_weight)
     val_demos = load_val_demos(config)
     distributed.start(world, device)
