@@ -119,9 +119,7 @@ def card(checkpoint: Path, config: dict, records: list[dict], summary: dict, dat
         f"`{config['diffusion'].get('loss', 'epsilon')}`, prediction `{config['diffusion']['prediction']}`, "
         f"sampler {config['diffusion']['sample_steps']}-step {config['diffusion']['sampler'].upper()}"
         + (f"; the grasped vertices weigh {config['data']['grip_weight']:g} in the loss"
-           if config["data"].get("grip_weight", 1.0) != 1.0 else "")
-        + ("; its blocks also see the mean of the noised input (`model.mean_input`)"
-           if config["model"].get("mean_input") else ""),
+           if config["data"].get("grip_weight", 1.0) != 1.0 else ""),
         "- training demonstrations: " + ", ".join(f"`{folder}`" for folder in config["data"]["train"])
         + " (made by the first command below)",
         *run_lines(config, records, plan),

@@ -68,7 +68,7 @@ def from_noised_goal(model, demos: list[dict], steps: list[int], generator, batc
     from tax3d.frames import to_world
     from tax3d.geometry import farthest_point_sample
 
-    diffusion, scale = model.diffusion, model.config.data.target_scale
+    diffusion = model.diffusion
     out = {t: {"x0_rmse": [], "toward_other": [], "precision_rmse": []} for t in steps}
     for own in range(len(demos)):
         demo = demos[own]
@@ -77,7 +77,7 @@ def from_noised_goal(model, demos: list[dict], steps: list[int], generator, batc
         frames = model._frames(action[keep], demo["anchor_pc"], generator)
         goals = [np.asarray(d["action_pc"] + d["flow"])[keep.numpy()] for d in demos]
         x0 = make_target(torch.as_tensor(goals[own], dtype=torch.float32)[None],
-                         {k: v[None] for k, v in frames.items()}, model.spec, scale).expand(batch, -1, -1)
+                         {k: v[None] for k, v in frames.items()}, model.spec).expand(batch, -1, -1)
         fn = model.model_fn(frames["action"][None].expand(batch, -1, -1), frames["anchor"][None].expand(batch, -1, -1))
         for t in steps:
             noise = torch.randn(x0.shape, generator=generator)
@@ -85,12 +85,12 @@ def from_noised_goal(model, demos: list[dict], steps: list[int], generator, batc
             for i in range(t, -1, -1):
                 step = diffusion.p_sample(fn, x, torch.full((batch,), i, dtype=torch.long), generator=generator)
                 if i == t:
-                    for estimate in to_world(step["pred_xstart"], frames, model.spec, scale).numpy():
+                    for estimate in to_world(step["pred_xstart"], frames, model.spec).numpy():
                         out[t]["x0_rmse"].append(float(rmse(estimate, goals[own])))
                         if len(goals) == 2:
                             out[t]["toward_other"].append(lean(estimate, goals[own], goals[1 - own]))
                 x = step["sample"]
-            for final in to_world(x, frames, model.spec, scale).numpy():
+            for final in to_world(x, frames, model.spec).numpy():
                 out[t]["precision_rmse"].append(sample_parts(final, goals)["precision_rmse"])
     return out
 

@@ -57,13 +57,12 @@ def test_unknown_variant_is_a_usage_error():
 
 @pytest.mark.parametrize("variant", VARIANTS)
 @pytest.mark.parametrize("rotate", [False, True])
-@pytest.mark.parametrize("target_scale", [1.0, 0.25])
-def test_to_world_inverts_the_target(demo_dir, variant, rotate, target_scale):
+def test_to_world_inverts_the_target(demo_dir, variant, rotate):
     _, demos = demo_dir
     action, anchor, goal = clouds(demos[0])
     spec = variant_spec(variant)
-    s = make_sample(action, anchor, goal, spec, gen(3), NA, NB, rotate=rotate, target_scale=target_scale)
-    close(to_world(s["target"], s, spec, target_scale), s["goal"])
+    s = make_sample(action, anchor, goal, spec, gen(3), NA, NB, rotate=rotate)
+    close(to_world(s["target"], s, spec), s["goal"])
 
     idx = s["action_idx"].numpy()
     close(s["action"] + s["action_mean"], action[idx])  # the action is never rotated
@@ -159,10 +158,10 @@ def test_batch_and_full_cloud_round_trip(demo_dir):
     folder, demos = demo_dir
     for variant in ("cd", "cp_w", "sp"):
         spec = variant_spec(variant)
-        ds = DemoDataset(folder, variant, num_action_points=NA, num_anchor_points=NB, target_scale=4.0)
+        ds = DemoDataset(folder, variant, num_action_points=NA, num_anchor_points=NB)
         batch = next(iter(DataLoader(ds, batch_size=3)))
         assert batch["target"].shape[0] == 3
-        close(to_world(batch["target"], batch, spec, 4.0), batch["goal"])
+        close(to_world(batch["target"], batch, spec), batch["goal"])
 
         # Evaluation: the full action cloud, no goal; a stack of predictions for one scene.
         action, anchor, goal = (torch.from_numpy(x) for x in clouds(demos[0]))

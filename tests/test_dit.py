@@ -147,28 +147,3 @@ def test_preset_parameter_counts():
     cpu = sum(p.numel() for p in build_network(cfg.cpu()).parameters())
     assert 1.5e6 < paper < 3e6
     assert cpu < paper / 3
-
-
-def test_mean_input_conditions_on_the_global_translation_alone():
-    torch.manual_seed(0)
-    model = randomise_zeroed_layers(DiTPointCloudCross(mean_input=True, **TINY)).eval()
-    x, t, action, anchor = inputs()
-    out = model(x, t, action, anchor)
-    perm = torch.randperm(N)  # the mean is order-free: still permutation-equivariant
-    torch.testing.assert_close(model(x[:, perm], t, action[:, perm], anchor), out[:, perm], atol=1e-5, rtol=1e-5)
-    # the conditioning moves with the mean of x_t and nothing else of it
-    cond = lambda x: model.conditioning(t, B, x) + model.mean_embedder(x)
-    other = torch.randn(B, N, 3)
-    torch.testing.assert_close(cond(x + other - other.mean(1, keepdim=True)), cond(x), atol=1e-5, rtol=1e-5)
-    assert (cond(x + 1.0) - cond(x)).abs().max() > 1e-3
-
-def test_mean_input_is_off_by_default_and_starts_at_zero():
-    assert not cfg.paper().model.mean_input
-    assert build_network(cfg.paper()).mean_embedder is None
-    config = cfg.cpu()
-    config.model.mean_input = True
-    network = build_network(config)
-    x, t, action, anchor = inputs()
-    assert network.mean_embedder is not None and (network(x, t, action, anchor) == 0).all()
-    config.model.variant = "rd"  # regression has no x_t to take the mean of
-    assert build_network(config).mean_embedder is None

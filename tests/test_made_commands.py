@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from tax3d import config as cfg
+from tax3d.commands import parses
 from tax3d.train import config_of_command
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,6 +66,8 @@ def differences(made: cfg.Config, shipped: cfg.Config) -> list[str]:
 
 @pytest.mark.parametrize("kept,command", kept_commands())
 def test_the_command_beside_a_kept_configuration_makes_it_with_todays_presets(kept, command):
+    if kept.parent.parent != ROOT / "checkpoints" and not parses(command):
+        pytest.skip("an option of the command was retired; its page shows it recorded with an earlier version")
     argv = shlex.split(command.split("#")[0])
     made = config_of_command(argv[argv.index("train") + 1:])
     assert not differences(made, cfg.from_dict(json.loads(kept.read_text()), str(kept)))

@@ -45,14 +45,12 @@ def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path):
     assert "best validation RMSE: 0.600 at step 3" in card and "DATA\nTRAIN" in card
     assert "- training demonstrations: `data/unimodal/train256` (made by the first command below)" in card
     assert "grasped vertices" not in card  # the uniform weight goes unmentioned
-    assert "mean_input" not in card
 
 
 def test_model_card_of_a_run_s_last_weights_names_them_beside_the_lowest_validation(tmp_path):
     checkpoint = tmp_path / "tax3d-cd-x"
     model = tiny_model()
     model.config.data.task, model.config.data.grip_weight = "hangproccloth-multimodal", 16.0
-    model.config.model.mean_input = True
     model.save_pretrained(checkpoint)
     log = tmp_path / "log.json"
     log.write_text(json.dumps({"records": [{"step": 2, "loss": 0.5, "seconds": 120.0, "val_rmse": 0.8},
@@ -66,7 +64,6 @@ def test_model_card_of_a_run_s_last_weights_names_them_beside_the_lowest_validat
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     card = (checkpoint / "README.md").read_text()
-    assert "; its blocks also see the mean of the noised input (`model.mean_input`)" in card
     assert "- last validation RMSE: 0.900 at step 3 (these weights, the run's last); lowest: 0.800 at step 2" in card
     assert "best validation RMSE" not in card
     assert "; the grasped vertices weigh 16 in the loss" in card

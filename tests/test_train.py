@@ -15,6 +15,7 @@ from tax3d.cli import main
 from tax3d.data.format import load_demo, save_demo
 from tax3d.metrics import rmse
 from tax3d.model.tax3d import Tax3D
+from tax3d.plan import Plan
 from tax3d.variants import VARIANTS
 
 from tests.conftest import TINY, read_log, synthetic_demo
@@ -25,8 +26,8 @@ def test_overfits_one_demonstration(tmp_path, capsys):
     save_demo(folder / "demo_0.npz", synthetic_demo(3))
     out = tmp_path / "run"
     code = main(["train", *TINY, "--out", str(out), "--data.train", str(folder), "--data.val", str(folder),
-                 "--train.steps", "400", "--train.val_every", "400", "--train.warmup_steps", "20",
-                 "--data.target_scale", "0.5", "--data.subsets", "0",  # fresh points each step: the loop alone
+                 "--train.steps", "800", "--train.val_every", "800", "--train.warmup_steps", "20",
+                 "--data.subsets", "0",  # fresh points each step: the loop alone
                  "--data.grip_weight", "1"])  # every point alike: this demo's goals are independent per point
     assert code == 0
     demo = load_demo(folder / "demo_0.npz")
@@ -40,7 +41,7 @@ def test_overfits_one_demonstration(tmp_path, capsys):
     trivial = min(float(rmse(untrained[0], goal)), float(rmse(demo["action_pc"], goal)))
     assert float(rmse(goals, goal).mean()) < 0.2 * trivial
     log = read_log(out)
-    assert [r["step"] for r in log] == list(range(1, 401)) and "val_rmse" in log[-1]
+    assert [r["step"] for r in log] == list(range(1, 801)) and "val_rmse" in log[-1]
     assert {"loss", "mse", "vb", "lr", "seconds"} <= set(log[0])
 
 
@@ -253,7 +254,7 @@ def test_data_workers_do_not_change_the_run(tmp_path, demos):
 
 def test_schedule_never_rises_after_the_warm_up():
     c = cfg.cpu().train
-    lrs = [train.get_lr(step, c) for step in range(c.steps + 50)]
+    lrs = [Plan.of(c).lr_at(step) for step in range(c.steps + 50)]
     assert lrs[c.warmup_steps - 1] == pytest.approx(c.lr)
     after = np.array(lrs[c.warmup_steps - 1:])
     assert (np.diff(after) <= 1e-15).all() and after[-1] == 0.0
@@ -364,7 +365,7 @@ def test_minutes_plan_is_timed_again_at_the_first_validation(tmp_path, demos, mo
     replan = next(r["replan"] for r in log if "replan" in r)
     assert replan["steps"] == steps and replan["planned"] == 60 and replan["step_seconds"] == pytest.approx(later)
     saved = cfg.load(out / "config.json").train
-    assert saved.steps == steps and saved.replan_step == 20 and log[-1]["step"] == steps
+    assert saved.steps == steps and log[-1]["step"] == steps and knee(out) == 20
     assert log[-1]["seconds"] == pytest.approx(30.0)
     lrs = [r["lr"] for r in log]
     assert all(b <= a for a, b in zip(lrs[10:], lrs[11:])) and lrs[-1] < 0.01 * max(lrs)
@@ -382,16 +383,21 @@ def test_a_plan_is_timed_again_at_every_validation(tmp_path, demos, monkeypatch)
     assert [r["step"] for r in log if "replan" in r] == [40]  # at step 20 the rate is the plan's
     # at step 40, 15 s have passed; the 15 s left hold 60 more steps at 0.25 s
     assert log[-1]["step"] in (99, 100) and log[-1]["seconds"] == pytest.approx(30.0, abs=0.3)
-    assert cfg.load(out / "config.json").train.replan_step == 40
+    assert knee(out) == 40
+
+
+def knee(out) -> int:
+    """The step of the last re-plan, in the run's training state."""
+    return torch.load(out / "last" / "training_state.pt", weights_only=True)["plan"]["knee"]
 
 
 def test_a_replanned_decay_goes_on_from_its_progress():
-    c = cfg.TrainConfig(lr=1.0, warmup_steps=10, steps=110)
-    before = train.get_lr(60, c)  # half way: lr / 2
-    c.replan_progress, c.replan_step, c.steps = train.decay_progress(60, c), 60, 260
-    assert train.get_lr(60, c) == pytest.approx(before) == pytest.approx(0.5)
-    assert train.get_lr(160, c) == pytest.approx(0.5 * (1 + math.cos(math.pi * 0.75)))
-    assert train.get_lr(260, c) == pytest.approx(0.0, abs=1e-12) and train.get_lr(59, c) > before
+    plan = Plan.of(cfg.TrainConfig(lr=1.0, warmup_steps=10, steps=110))
+    before = plan.lr_at(60)  # half way: lr / 2
+    plan.knee_progress, plan.knee, plan.steps = plan.progress(60), 60, 260
+    assert plan.lr_at(60) == pytest.approx(before) == pytest.approx(0.5)
+    assert plan.lr_at(160) == pytest.approx(0.5 * (1 + math.cos(math.pi * 0.75)))
+    assert plan.lr_at(260) == pytest.approx(0.0, abs=1e-12) and plan.lr_at(59) > before
 
 
 def test_default_preset_fits_the_machine_and_long_runs_are_told(tmp_path, demos, capsys, monkeypatch):

@@ -38,9 +38,6 @@ class ModelConfig:
     """attention heads per block"""
     mlp_ratio: Annotated[float, Positive] = 4.0
     """width of each block's MLP, times hidden_size"""
-    mean_input: bool = False
-    """condition every block on the mean of the noised input x_t over the action points (not in the paper): the
-    global translation that separates a cloth's goals; docs/training.md measures it"""
 
 
 @dataclass
@@ -54,10 +51,9 @@ class DiffusionConfig:
     prediction: Literal["epsilon", "sample"] = "epsilon"
     """what the network outputs: the noise (the paper) or the clean target x_0, turned into the noise
     estimate eps = (x_t / sqrt(abar_t) - x_0) / sqrt(1 / abar_t - 1) so that loss and samplers are unchanged"""
-    loss: Literal["epsilon", "x0", "v", "min_snr", "v_capped"] = "epsilon"
+    loss: Literal["epsilon", "x0", "v"] = "epsilon"
     """the mean term of the loss: the epsilon MSE (the paper's: the x_0 error weighted by SNR(t)), or the x_0 MSE
-    weighted by 1 (x0), SNR(t) + 1 (v), min(SNR(t), 5) (min_snr) or min(SNR(t) + 1, 5) (v_capped);
-    docs/training.md measures them"""
+    weighted by 1 (x0) or SNR(t) + 1 (v); docs/training.md measures them"""
     sample_steps: Annotated[int, Positive] = 100
     """denoising steps at prediction: fewer than num_timesteps respaces the schedule"""
     sampler: Literal["ddpm", "ddim"] = "ddpm"
@@ -78,8 +74,6 @@ class DataConfig:
     """anchor points sampled per training sample"""
     train_size: Annotated[int, Positive] = 400
     """samples per epoch (demos are repeated); an epoch holds every demo at least once"""
-    target_scale: Annotated[float, Positive] = 1.0
-    """the network's target is the variant's target times this"""
     subsets: Annotated[int, NonNegative] = 0
     """farthest-point subsets sampled once per demo, an item picking one at random (0: sample afresh each time)"""
     rotate: bool = True
@@ -117,14 +111,10 @@ class TrainConfig:
     """validate on the first this many val demos (0: all)"""
     minutes: Annotated[float, NonNegative] = 0.0
     """plan the run to end after this many minutes on this machine: the step rate measured over the first steps
-    fixes train.steps (and so the cosine schedule) then, and the plan is recorded in config.json (0: use steps)"""
+    fixes train.steps (and so the cosine schedule) then, timed again at every validation (tax3d.plan); config.json
+    records the planned steps (0: use steps)"""
     validations: Annotated[int, NonNegative] = 0
     """with train.minutes: validate this many times, evenly over the planned steps (0: every val_every steps)"""
-    replan_step: Annotated[int, NonNegative] = 0
-    """set by a --train.minutes run timed again at a validation: from this step the cosine decay goes on
-    from replan_progress to its end at train.steps, so the learning rate neither jumps nor rises (0: not re-planned)"""
-    replan_progress: Annotated[float, NonNegative] = 0.0
-    """the cosine decay's progress (0 to 1) at replan_step"""
     time_limit: Annotated[float, NonNegative] = 0.0
     """stop after this many minutes of training, as if at the last step, the schedule unchanged (unlike
     train.minutes, the learning rate has not decayed then; 0: no limit)"""
@@ -202,6 +192,14 @@ def preset(name: str) -> Config:
 METADATA = ("weights_sha256",)
 """top-level keys of a checkpoint's config.json beside the sections"""
 _SECTIONS = {"model": ModelConfig, "diffusion": DiffusionConfig, "data": DataConfig, "train": TrainConfig}
+RUN_STATE = object()
+RETIRED = {("model", "mean_input"): False, ("data", "target_scale"): 1.0,
+           ("train", "replan_step"): RUN_STATE, ("train", "replan_progress"): RUN_STATE}
+"""fields of earlier versions' config.json, by the value at which each changes nothing: accepted there and dropped,
+any other value an error naming the field. RUN_STATE marks the knee of a re-planned --train.minutes run, kept in
+config.json by earlier versions and in the training state now (tax3d.plan): accepted at any value and dropped."""
+RETIRED_LOSSES = ("min_snr", "v_capped")
+"""diffusion.loss values of earlier versions"""
 
 
 def to_dict(config: Config) -> dict:
@@ -216,7 +214,26 @@ def from_dict(data: dict, where: str = "config") -> Config:
     missing = [name for name in _SECTIONS if name not in data]
     if missing:
         raise UsageError(f"{where}: no '{missing[0]}' section; expected the sections {', '.join(_SECTIONS)}")
-    return validate(Config(**parse_sections(data, _SECTIONS, where, ignore=METADATA)), where)
+    return validate(Config(**parse_sections(without_retired(data, where), _SECTIONS, where, ignore=METADATA)), where)
+
+
+def without_retired(data: dict, where: str) -> dict:
+    """data without the RETIRED fields; a retired field at a value other than its neutral one is an error."""
+    data = {name: dict(values) if name in _SECTIONS and isinstance(values, dict) else values
+            for name, values in data.items()}
+    for (section, name), neutral in RETIRED.items():
+        values = data.get(section)
+        if not isinstance(values, dict):
+            continue
+        if name in values and neutral is not RUN_STATE and values[name] != neutral:
+            raise UsageError(f"{where}: {section}.{name} is {values[name]!r}: that option was retired; a config "
+                             f"from an earlier version loads only with {section}.{name} = {neutral!r}")
+        values.pop(name, None)
+    loss = data["diffusion"].get("loss") if isinstance(data.get("diffusion"), dict) else None
+    if loss in RETIRED_LOSSES:
+        raise UsageError(f"{where}: diffusion.loss is {loss!r}: that loss was retired; expected one of "
+                         f"{', '.join(map(repr, typing.get_args(typing.get_type_hints(DiffusionConfig)['loss'])))}")
+    return data
 
 
 def parse_sections(data: dict, sections: dict, where: str, ignore=()) -> dict:
@@ -308,7 +325,6 @@ def validate(config: Config, where: str = "config") -> Config:
          "diffusion.sample_steps must lie in [1, diffusion.num_timesteps]"),
         (config.data.num_action_points >= 1 and config.data.num_anchor_points >= 1,
          "data.num_action_points and data.num_anchor_points must be positive"),
-        (config.data.target_scale > 0, "data.target_scale must be positive"),
         (config.train.batch_size >= 1, "train.batch_size must be positive"),
         (config.train.steps >= 1, "train.steps must be positive"),
         (config.train.minutes >= 0, "train.minutes must not be negative"),

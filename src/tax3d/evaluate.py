@@ -43,11 +43,8 @@ class Args:
     episodes: Annotated[int | None, Positive] = None
     """episodes per split (default: every demo of the split's folder, or the paper's size)"""
     samples: Annotated[int, Positive] = 1
-    """goal samples per episode (the policy executes one: --select); RMSE is their mean, coverage their min"""
-    select: Literal["first", "medoid", "densest", "grip_medoid"] = "first"
-    """which goal sample the policy executes: the first (the paper's policy), the medoid (the least summed RMSE to
-    the other samples), the densest (the first of the closest pair: a sample from a crowd, not between two) or the
-    grip_medoid (the medoid of the grasped vertices alone, where the grippers go)"""
+    """goal samples per episode (the policy executes the first, the paper's policy); RMSE is their mean, coverage
+    their min"""
     steps: Annotated[int | None, Positive] = None
     """denoising steps (default: the checkpoint's)"""
     sampler: Literal["ddpm", "ddim"] | None = None
@@ -94,7 +91,6 @@ class EvalJob:
     offset: tuple | None = None  # gripper-target offset; None: the task's
     device: str = "cpu"
     goal: str = "model"  # model, demo or mean (Args.goal)
-    select: str = "first"  # the sample the policy executes (Args.select)
     mean_goal: object = None  # with goal "mean": the MeanGoalBaseline fitted on the training demos
 
 
@@ -153,19 +149,17 @@ def run_eval_job(job: EvalJob) -> dict:
         policy = DP3Policy(predictor, job.seed)
     else:
         policy = GoalPolicy(predictor, job.samples, job.steps, job.seed, job.replan_every, trajectory=job.denoising,
-                            offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler,
-                            select=job.select)
+                            offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler)
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
-    executed = getattr(policy, "executed", 0)
-    grip = list(ep.grip_vertices)
-    executed_grip_error = None if errors is None or not grip else grip_error(pred[executed], job.true_goal, grip)
+    grip = list(ep.grip_vertices)  # the policy executes the first sample
+    executed_grip_error = None if errors is None or not grip else grip_error(pred[0], job.true_goal, grip)
     return {
         "split": job.split, "name": job.name, "success": bool(ep.success), "exploded": bool(ep.exploded),
         "rmse": None if errors is None else float(errors.mean()),
         "min_rmse": None if errors is None else float(errors.min()),
-        "executed_rmse": None if errors is None else float(errors[executed]), "executed_grip_error": executed_grip_error,
+        "executed_rmse": None if errors is None else float(errors[0]), "executed_grip_error": executed_grip_error,
         "predict_seconds": policy.predict_seconds, "sim_seconds": ep.seconds - policy.predict_seconds,
         "checks": ep.checks, "action_pc": ep.action_pc, "anchor_pc": ep.anchor_pc, "pred_goal": pred,
         "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": grip,
@@ -213,7 +207,7 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
                       sampler=args.sampler, replan_every=args.replan_every, task=task.name, device=args.device,
                       offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset),
-                      goal=args.goal, mean_goal=mean_goal, select=args.select)
+                      goal=args.goal, mean_goal=mean_goal)
         if folder is not None:
             paths = _demos_from(folder, args.first_index, args.episodes)
             for path in paths:

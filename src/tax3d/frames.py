@@ -35,20 +35,20 @@ def frame_inputs(action: torch.Tensor, anchor: torch.Tensor, spec: VariantSpec) 
     }
 
 
-def to_world(prediction: torch.Tensor, frames: dict, spec: VariantSpec, target_scale: float = 1.0) -> torch.Tensor:
+def to_world(prediction: torch.Tensor, frames: dict, spec: VariantSpec) -> torch.Tensor:
     """World-frame goal action points (..., N, 3) from a model output in the variant's frame.
 
     `frames` holds action (..., N, 3) and anchor_mean (..., 3) as made by `frame_inputs` or
     `tax3d.data.dataset.make_sample` (a sample or a collated batch); their leading dimensions must broadcast against
     the prediction's, so a single scene's frames serve a stack of samples (S, N, 3). For SD/SP the anchor rows of the prediction
-    (after the first N) are dropped. `target_scale` must be the one the targets were made with.
+    (after the first N) are dropped.
     """
     action = frames["action"]
     n = action.shape[-2]
     allowed = (n, n + frames["anchor"].shape[-2]) if spec.scene and "anchor" in frames else (n,)
     if prediction.shape[-2] not in allowed:
         raise ValueError(f"prediction has {prediction.shape[-2]} points; expected {' or '.join(map(str, allowed))}")
-    goal = prediction[..., :n, :] / target_scale
+    goal = prediction[..., :n, :]
     if spec.target == "displacement":
         goal = goal + action
     return goal + frames["anchor_mean"][..., None, :]

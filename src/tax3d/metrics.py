@@ -56,34 +56,11 @@ def medoid(samples) -> int:
     return int(rmse(samples[:, None], samples[None]).sum(1).argmin())
 
 
-def densest(samples) -> int:
-    """Index of the goal sample (K, N, 3) nearest another sample: the first of the closest pair. Where samples crowd
-    about two goals (two holes) and some fall between them, it picks one from a crowd, where the medoid may pick one
-    from between."""
-    if len(samples) < 2:
-        return 0
-    distances = torch.as_tensor(rmse(samples[:, None], samples[None]), dtype=torch.float64)
-    distances.fill_diagonal_(float("inf"))
-    return int(distances.min(1).values.argmin())
-
-
 def grip_error(samples, goal, grip) -> float:
     """Mean distance of the goal samples (..., N, 3) from `goal` (N, 3) at the grasped rows `grip`, where the policy
     sends the grippers."""
     grip = list(grip)
     return float(np.linalg.norm(samples[..., grip, :] - goal[grip], axis=-1).mean())
-
-
-def grip_medoid(samples, grip) -> int:
-    """Index of the goal sample whose grasped vertices (`grip`, the rows the grippers are sent to) have the least
-    summed RMSE to the other samples' grasped vertices: the medoid of what the policy executes."""
-    return medoid(samples[:, list(grip)])
-
-
-SELECTIONS = {"first": lambda samples, grip: 0, "medoid": lambda samples, grip: medoid(samples),
-              "densest": lambda samples, grip: densest(samples), "grip_medoid": grip_medoid}
-"""which of a prediction's goal samples (K, N, 3) the policy executes, given the grasped rows (`tax3d eval --select`);
-"first" is the paper's policy"""
 
 
 class MeanGoalBaseline:

@@ -6,26 +6,21 @@ import time
 
 import numpy as np
 
-from tax3d.metrics import SELECTIONS
-
 
 class GoalPolicy:
     """Predict the goal once on the full action cloud; drive the grippers to the predicted grip vertices.
 
     With replan_every = K > 0 it predicts again every K environment steps from the current cloth (closed loop,
     the paper's stated limitation; reported separately). `offset` is added to the predicted positions (HangBag:
-    `tax3d.sim.bag.POLICY_OFFSET`). With several samples it follows the first (select "first", the paper's policy)
-    or another of `tax3d.metrics.SELECTIONS` (select "medoid": the sample nearest the others; "densest": one of the
-    closest pair; "grip_medoid": the sample whose grasped vertices are nearest the others'). Called as
+    `tax3d.sim.bag.POLICY_OFFSET`). With several samples it follows the first, the paper's policy. Called as
     make_policy(env, state) by run_episode.
     """
 
     def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
                  replan_every: int = 0, trajectory: bool = False, offset=(0.0, 0.0, 0.0),
-                 sampler: str | None = None, select: str = "first"):
+                 sampler: str | None = None):
         self.predictor, self.num_samples, self.steps, self.seed = predictor, num_samples, steps, seed
-        self.sampler, self.select = sampler, select
-        self.executed = 0  # which sample of the first prediction the grippers follow
+        self.sampler = sampler
         self.offset = np.asarray(offset, dtype=np.float64)
         self.replan_every, self.trajectory = replan_every, trajectory
         self.predict_seconds, self.predictions = 0.0, 0
@@ -50,11 +45,10 @@ class GoalPolicy:
             goals = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps,
                                            sampler=self.sampler, seed=seed)
         self.predict_seconds += time.perf_counter() - start
-        chosen = SELECTIONS[self.select](goals, self.grip)
         if self.predictions == 0:
-            self.first_prediction, self.executed = goals, chosen
+            self.first_prediction = goals
         self.predictions += 1
-        self.current = goals[chosen][self.grip] + self.offset
+        self.current = goals[0][self.grip] + self.offset
 
     def targets(self, cloth: np.ndarray) -> np.ndarray:
         if self.replan_every and self.step and self.step % self.replan_every == 0:

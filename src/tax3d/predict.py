@@ -6,9 +6,8 @@ The npz holds `goals` (D, K, N, 3) world-frame predictions (where the demos' poi
 and demo i's rows from points[i] on are NaN), `points` (D,) the action points of each demo, `files` (D,) and
 `rmse` (D, K); it loads without allow_pickle. The printed RMSE is the mean over demos of the
 min over samples (docs/reference.md, Evaluation), the mean over all samples and that of each demo's medoid sample
-(the one `tax3d eval --select medoid` executes); `--summary FILE` keeps it as JSON with the command, machine and
-date. `--compare-samplers` scores the same demos, seed and noise with each of COMPARED_SAMPLERS as well (how much an
-under-trained checkpoint depends on its sampler).
+(the one nearest the others); `--summary FILE` keeps it as JSON with the command, machine and date.
+`benchmarks/samplers.py` scores the same demos and seed with each sampler.
 """
 
 from __future__ import annotations
@@ -34,8 +33,6 @@ from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
 from tax3d import options
 from tax3d.options import NonNegative, OutputFile, Positive
-
-COMPARED_SAMPLERS = ((10, "ddpm"), (10, "ddim"), (100, "ddpm"))  # (steps, sampler)
 
 
 @dataclass
@@ -70,9 +67,6 @@ class Args:
     """demos denoised together in one batch"""
     device: str = "cpu"
     """cpu, cuda, cuda:K or auto (CUDA when there is one)"""
-    compare_samplers: bool = False
-    """also score the demos with the 10-step DDPM, the 10-step DDIM and the 100-step DDPM (same seed), in the
-    summary under samplers"""
 
 
 def run(args: Args) -> int:
@@ -99,16 +93,6 @@ def run(args: Args) -> int:
     summary = {"demos": len(demos), "samples": args.samples, "steps": args.steps or model.config.diffusion.sample_steps,
                "rmse_min_of_samples": float(errors.min(1).mean()), "rmse_mean": float(errors.mean()),
                "rmse_medoid": medoid_rmse(goals, errors), "seconds": round(seconds, 2)}
-    if args.compare_samplers and model.spec.diffusion:
-        summary["samplers"] = {}
-        for steps, sampler in COMPARED_SAMPLERS:
-            compared = model.predict_scenes(scenes, num_samples=args.samples, steps=steps, sampler=sampler,
-                                            max_points=args.max_points, seed=args.seed,
-                                            batch_scenes=args.batch_scenes, progress=True)
-            found = np.stack([rmse(g, d["action_pc"] + d["flow"]) for g, d in zip(compared, demos)])
-            summary["samplers"][f"{sampler}_{steps}"] = {"rmse_min_of_samples": float(found.min(1).mean()),
-                                                         "rmse_mean": float(found.mean()),
-                                                         "rmse_medoid": medoid_rmse(compared, found)}
     if args.baseline:
         baseline = MeanGoalBaseline.fit([load_demo(p) for p in demo_files(args.baseline)])
         summary["rmse_mean_goal_baseline"] = float(np.mean(
@@ -129,7 +113,7 @@ def run(args: Args) -> int:
 
 
 def medoid_rmse(goals: list[np.ndarray], errors: np.ndarray) -> float:
-    """Mean over demos of the RMSE of each demo's medoid sample (the goal `tax3d eval --select medoid` executes)."""
+    """Mean over demos of the RMSE of each demo's medoid sample (the one with the least summed RMSE to the others)."""
     return float(np.mean([e[medoid(g)] for g, e in zip(goals, errors)]))
 
 

@@ -28,6 +28,7 @@ from typing import Optional
 import tyro
 
 from tax3d.atomic import write_bytes
+from tax3d.commands import EARLIER, shown
 from tax3d.errors import UsageError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -71,7 +72,7 @@ def retired(d: dict) -> str:
     if d["command"].startswith("python scripts/oracle_policy.py"):
         return f" (today: `tax3d eval --goal {d.get('goal', 'demo')}` with the same options)"
     if d["command"].startswith("python scripts/sampler_check.py"):
-        return " (today: `tax3d predict --compare-samplers`, one checkpoint at a time)"
+        return " (today: `python benchmarks/samplers.py`, one checkpoint at a time)"
     return ""
 
 class Page:
@@ -203,12 +204,12 @@ class Page:
         lines = [f"- demonstrations: `{c}`" for c in self.spec.get("setup", [])]
         for row in self.rows:
             d = self.data[row["id"]]
-            made = f" made by `{row['made']}`, then" if row.get("made") else ""
+            made = f" made by {shown(row['made'])}, then" if row.get("made") else ""
             if "checkpoint" in d:
-                how = f"evaluated by `{d['command']}` (checkpoint `{d['checkpoint']}`)"
+                how = f"evaluated by {shown(d['command'])} (checkpoint `{d['checkpoint']}`)"
             else:
                 offset = ", ".join(f"{v:g}" for v in d.get("offset", ()))
-                how = f"`{d['command']}`" + (f" (gripper-target offset ({offset}))" if offset else "")
+                how = shown(d["command"]) + (f" (gripper-target offset ({offset}))" if offset else "")
                 how += retired(d)
             config = f" Configuration: [{row['config']}]({row['config']})." if row.get("config") else ""
             config += f" Shipped as `{row['shipped']}`." if row.get("shipped") else ""
@@ -219,7 +220,7 @@ class Page:
             lines.append(f"- curve **{c['label']}** ([{c['summary']}]({c['summary']})): the run `{d['run']}`.")
         for s in self.spec.get("source", []):
             d = self.data[s["id"]]
-            lines.append(f"- {s['label']} ([{s['summary']}]({s['summary']})): `{d['command']}`{retired(d)}, "
+            lines.append(f"- {s['label']} ([{s['summary']}]({s['summary']})): {shown(d['command'])}{retired(d)}, "
                          f"{d['date']}.")
         return lines
 
@@ -287,7 +288,8 @@ class Page:
         lines += ["## Commands", "", "The commands that made each row, the machine and the date. A `tax3d train "
                   "--preset cpu` command names every option in which the preset of its date differs from today's, "
                   "so it makes the same configuration today (`tests/test_made_commands.py` checks it for every row "
-                  "whose configuration is kept):", "",
+                  "whose configuration is kept); one that takes an option since retired is marked "
+                  f"\"{EARLIER}\":", "",
                   *fold("Every command", self.commands())]
         if len(self.timings()) > 2:
             lines += ["## Seconds per episode", "", *fold(

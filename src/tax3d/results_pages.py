@@ -16,12 +16,13 @@ import json
 import os
 import re
 
+from tax3d.commands import shown
 from tax3d.errors import UsageError
 from tax3d.results import Page, fold
 
 
 def provenance(d: dict) -> str:
-    return f"`{d['command']}` on {d['machine']}, {d['date']}"
+    return f"{shown(d['command'])} on {d['machine']}, {d['date']}"
 
 
 class MeasurementPage(Page):
@@ -210,7 +211,7 @@ class TrainingPage(MeasurementPage):
     def markdown(self) -> str:
         page, plot = (self.root / self.spec["page"]).resolve(), (self.root / self.spec["plot"]).resolve()
         link = os.path.relpath(plot, page.parent)
-        commands = [f"- {name}, {run}: `{result['command']}`" for name, study, _ in self.studies
+        commands = [f"- {name}, {run}: {shown(result['command'])}" for name, study, _ in self.studies
                     for run, result in study["runs"].items()]
         # consecutive studies made on the same machine and day share one mention of them
         measured = "; ".join(

@@ -42,6 +42,7 @@ from tax3d.errors import UsageError
 from tax3d.metrics import coverage_rmse, grip_error, min_of_samples_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
 from tax3d.options import OutputFolder
+from tax3d.plan import Plan
 
 LONG_RUN_HOURS = 12  # a run planned longer than this is told so at its start
 
@@ -63,31 +64,7 @@ class Args:
     train: cfg.TrainOverrides = field(default_factory=cfg.TrainOverrides)
 
 
-# --- learning rate and batches ---------------------------------------------------------------------------------
-
-
-def get_lr(step: int, c: cfg.TrainConfig) -> float:
-    """Linear warm-up to lr over warmup_steps, then a cosine decay to 0 at the last step (App. B.2)."""
-    return cosine_lr(step, c.lr, c.warmup_steps, c.steps, c.replan_step, c.replan_progress)
-
-
-def decay_progress(step: int, c: cfg.TrainConfig) -> float:
-    """How far the cosine decay is at `step` (0 at the warm-up's end, 1 at c.steps)."""
-    return cosine_progress(step, c.warmup_steps, c.steps, c.replan_step, c.replan_progress)
-
-
-def cosine_lr(step: int, lr: float, warmup_steps: int, steps: int, knee: int = 0, knee_progress: float = 0.0) -> float:
-    if step < warmup_steps:
-        return lr * (step + 1) / warmup_steps
-    progress = cosine_progress(step, warmup_steps, steps, knee, knee_progress)
-    return lr * 0.5 * (1.0 + math.cos(math.pi * min(progress, 1.0)))
-
-
-def cosine_progress(step: int, warmup_steps: int, steps: int, knee: int = 0, knee_progress: float = 0.0) -> float:
-    """A plan re-planned at step `knee` > 0 goes on linearly from its progress there to 1 at its new last step."""
-    if knee and step >= knee:
-        return knee_progress + (1.0 - knee_progress) * (step - knee) / max(1, steps - knee)
-    return (step - warmup_steps) / max(1, steps - warmup_steps)
+# --- the EMA and batches ---------------------------------------------------------------------------------
 
 
 def ema_decay(step: int, decay: float) -> float:
@@ -139,34 +116,6 @@ class EpochItems(Dataset):
         epoch, index = key
         self.dataset.set_epoch(epoch)
         return self.dataset[index]
-
-
-def plan_step(c: cfg.TrainConfig) -> int:
-    """The step after which a --train.minutes run fixes its step count: inside the warm-up, where the learning
-    rate does not depend on the total."""
-    return max(12, min(100, c.warmup_steps))
-
-
-def plan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: float, val_seconds: float) -> tuple[int, int]:
-    """(steps, val_every) that end a run of c.minutes: the time left, spent on steps of step_seconds and
-    validations of val_seconds, every c.val_every steps or c.validations times, one of them at the end."""
-    left = 60.0 * c.minutes - elapsed - val_seconds
-    if c.validations > 0:
-        steps = step + max(1, int((left - (c.validations - 1) * val_seconds) / step_seconds))
-        return steps, max(1, -(-steps // c.validations))
-    return step + steps_between_validations(c, left, step_seconds, val_seconds), c.val_every
-
-
-def steps_between_validations(c: cfg.TrainConfig, seconds: float, step_seconds: float, val_seconds: float) -> int:
-    """The steps (at least one) that fit `seconds` with a validation every c.val_every steps."""
-    return max(1, int(seconds / (step_seconds + val_seconds / c.val_every)))
-
-
-def replan_steps(c: cfg.TrainConfig, step: int, elapsed: float, step_seconds: float, val_seconds: float) -> int:
-    """The step count of a planned run timed again at a validation: the steps that fit the minutes left at the rate
-    measured since the plan or the validation before, fewer or more than planned."""
-    left = 60.0 * c.minutes - elapsed - val_seconds
-    return step + steps_between_validations(c, left, step_seconds, val_seconds)
 
 
 # --- validation ------------------------------------------------------------------------------------------------
@@ -345,50 +294,11 @@ def ignore_interrupts(worker_id: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def make_plan(config: cfg.Config, model: Tax3D, ema, val_demos: list[dict], step: int, elapsed: float,
-              step_seconds: float, world: distributed.World, device: torch.device) -> dict:
-    """Fix config.train.steps for a --train.minutes run (every rank the same) after timing one validation."""
-    c = config.train
-    val_seconds = 0.0
-    if world.main and val_demos:
-        evaluated = copy.deepcopy(model)
-        if ema is not None:
-            evaluated.net.load_state_dict(ema.state_dict())
-        started = time.time()
-        validate(evaluated, val_demos, c.val_samples, seed=c.seed)
-        val_seconds = time.time() - started
-    steps, val_every = plan_steps(c, step, elapsed + val_seconds, step_seconds, val_seconds)
-    if world.distributed:
-        planned = torch.tensor([float(steps), float(val_every)], device=device)
-        steps, val_every = (int(round(float(v))) for v in distributed.mean(world, planned))
-    c.steps, c.val_every = steps, val_every
-    return {"steps": steps, "val_every": val_every, "minutes": c.minutes, "step_seconds": step_seconds,
-            "val_seconds": val_seconds}
-
-
-def replan(config: cfg.Config, record: dict, step: int, elapsed: float, step_seconds: float, val_seconds: float,
-           world: distributed.World, device: torch.device, out: Path) -> None:
-    """Shorten or lengthen a --train.minutes run whose steps have run slower or faster since its plan or its last
-    validation, the decay going on from where it is (every rank the same)."""
-    c = config.train
-    steps = replan_steps(c, step, elapsed, step_seconds, val_seconds)
-    if world.distributed:
-        steps = int(round(float(distributed.mean(world, torch.tensor([float(steps)], device=device))[0])))
-    if steps != c.steps:
-        record["replan"] = {"steps": steps, "planned": c.steps, "step_seconds": step_seconds,
-                            "val_seconds": val_seconds}
-        c.replan_progress, c.replan_step, c.steps = decay_progress(step, c), step, steps
-        if world.main:
-            cfg.save(config, out / "config.json")
-            print(f"re-planned {steps} steps for {c.minutes:g} minutes ({step_seconds:.3f} s per step since the "
-                  f"last timing)", file=sys.stderr)
-
-
 # --- the loop --------------------------------------------------------------------------------------------------
 
 
-def load_state(last: Path, model: Tax3D, optimizer, ema, noise_gen, device) -> tuple[int, float, float]:
-    """Restore model, optimizer, EMA and generators from last/; returns step, best and elapsed seconds."""
+def load_state(last: Path, model: Tax3D, optimizer, ema, plan: Plan, noise_gen, device) -> tuple[int, float, float]:
+    """Restore model, optimizer, EMA, plan and generators from last/; returns step, best and elapsed seconds."""
     read_weights(last)  # the checkpoint's own weights must be readable too, not only the state
     try:
         state = torch.load(last / STATE_NAME, map_location=device, weights_only=True)
@@ -403,6 +313,10 @@ def load_state(last: Path, model: Tax3D, optimizer, ema, noise_gen, device) -> t
     optimizer.load_state_dict(state["optimizer"])
     if ema is not None:
         ema.load_state_dict(state["ema"] if "ema" in state else state["model"])
+    # earlier versions kept the plan's knee in config.json (train.replan_step, train.replan_progress)
+    retired = cfg.read_json(last / "config.json").get("train", {})
+    plan.load_state_dict(state.get("plan", {"knee": retired.get("replan_step", 0),
+                                            "knee_progress": retired.get("replan_progress", 0.0)}))
     noise_gen.set_state(state["noise_rng"].cpu())  # a CPU ByteTensor, for CUDA generators too (ATen check_rng_state)
     torch.set_rng_state(state["torch_rng"].cpu())
     return int(state["step"]), float(state["best"]), float(state["elapsed"])
@@ -429,7 +343,7 @@ def run(args: Args) -> int:
     dataset = DemoDataset(config.data.train, config.model.variant, train=True, rotate=config.data.rotate,
                           num_action_points=config.data.num_action_points,
                           num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size,
-                          target_scale=config.data.target_scale, seed=c.seed, subsets=config.data.subsets,
+                          seed=c.seed, subsets=config.data.subsets,
                           grip_weight=config.data.grip_weight)
     val_demos = load_val_demos(config)
     distributed.start(world, device)
@@ -454,10 +368,11 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     ema = copy.deepcopy(model.net).requires_grad_(False) if c.ema > 0 else None
     optimizer = torch.optim.AdamW(model.parameters(), lr=c.lr, weight_decay=c.weight_decay)
     noise_gen = torch.Generator(device=device).manual_seed(c.seed)  # diffusion timesteps and noise
+    plan = Plan.of(c)
     step, best, elapsed = 0, float("inf"), 0.0
 
     if last is not None:
-        step, best, elapsed = load_state(last, model, optimizer, ema, noise_gen, device)
+        step, best, elapsed = load_state(last, model, optimizer, ema, plan, noise_gen, device)
         if world.main:
             print(f"resuming {out} at step {step}", file=sys.stderr)
             truncate_log(out / "log.jsonl", step)
@@ -477,25 +392,40 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     model.train()
     started = time.time() - elapsed
     share = world.share(c.batch_size)
-    planning = step < plan_step(c)  # a --train.minutes run plans its steps then; any other run checks its length
-    rate_from = None  # (step, time) from which the step rate is measured: after the first, slower steps
-    replan_from = None  # (step, time) after the plan or the last validation, in the process that made the plan
     interruption = interruption or Interruption()
+
+    def weights() -> dict:
+        return (ema if ema is not None else model.net).state_dict()
 
     def save_last() -> None:
         state = {"model": model.net.state_dict(), "optimizer": optimizer.state_dict(), "step": step,
                  "best": best, "elapsed": time.time() - started, "noise_rng": noise_gen.get_state(),
-                 "torch_rng": torch.get_rng_state()}
+                 "torch_rng": torch.get_rng_state(), "plan": plan.state_dict()}
         if ema is not None:
             state["ema"] = ema.state_dict()
-        save_checkpoint(out, "last", model, (ema if ema is not None else model.net).state_dict(), state)
+        save_checkpoint(out, "last", model, weights(), state)
+
+    def time_validation() -> float:
+        if not (world.main and val_demos):
+            return 0.0
+        evaluated = copy.deepcopy(model)
+        evaluated.net.load_state_dict(weights())
+        began = time.time()
+        validate(evaluated, val_demos, c.val_samples, seed=c.seed)
+        return time.time() - began
+
+    def planned(message: str) -> None:
+        """The plan's steps into the configuration, config.json and the bar."""
+        c.steps, c.val_every, bar.total = plan.steps, plan.val_every, plan.steps
+        if world.main:
+            cfg.save(config, out / "config.json")
+            print(message, file=sys.stderr)
 
     interrupted = False
     while step < c.steps:
-        if planning and rate_from is None and step >= min(10, plan_step(c) - 1):
-            rate_from = (step, time.time())
+        plan.start_step(step)
         batch = {k: v.to(device) for k, v in next(batches).items()}
-        lr = get_lr(step, c)
+        lr = plan.lr_at(step)
         for group in optimizer.param_groups:
             group["lr"] = lr
         # every rank draws the timesteps and noise of the whole global batch and keeps its own rows
@@ -523,45 +453,37 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
         out_of_time = c.time_limit > 0 and time.time() - started > 60 * c.time_limit
         values, (out_of_time, interrupted) = mean_losses(world, losses, out_of_time, interruption.requested)
         record = {"step": step, **values, "lr": lr}
-        if planning and step == plan_step(c) and c.minutes == 0:
-            planning = False
-            hours = (c.steps - step) * (time.time() - rate_from[1]) / (step - rate_from[0]) / 3600
+        if plan.timing(step) and c.minutes == 0:
+            hours = plan.hours_left(step)
             if world.main and hours > LONG_RUN_HOURS:
                 print(f"note: {c.steps} steps at this machine's rate take about {hours:.0f} hours; "
                       f"--train.minutes M plans a run that ends after M minutes", file=sys.stderr)
-        if planning and step == plan_step(c):
-            planning = False
-            record["plan"] = make_plan(config, model, ema, val_demos, step, time.time() - started,
-                                       (time.time() - rate_from[1]) / (step - rate_from[0]), world, device)
-            bar.total = c.steps
-            replan_from = (step, time.time())
-            if world.main:
-                cfg.save(config, out / "config.json")
-                print(f"planned {c.steps} steps for {c.minutes:g} minutes ({record['plan']['step_seconds']:.3f} s "
-                      f"per step, {record['plan']['val_seconds']:.1f} s per validation)", file=sys.stderr)
+        elif plan.timing(step):
+            record["plan"] = plan.make(step, started, time_validation, agree(world, device))
+            planned(f"planned {plan.steps} steps for {c.minutes:g} minutes ({plan.step_seconds:.3f} s per step, "
+                    f"{plan.val_seconds:.1f} s per validation)")
         validating = step % c.val_every == 0 or step == c.steps or out_of_time
         if validating:
             val_started = time.time()
             if world.main:
-                weights = (ema if ema is not None else model.net).state_dict()
                 if val_demos:
                     evaluated = copy.deepcopy(model)
-                    evaluated.net.load_state_dict(weights)
+                    evaluated.net.load_state_dict(weights())
                     record.update(validate(evaluated, val_demos, c.val_samples, seed=c.seed))
                     if record["val_rmse"] < best:
                         best = record["val_rmse"]
-                        save_checkpoint(out, "best", model, weights, None)
+                        save_checkpoint(out, "best", model, weights(), None)
                 save_last()
                 shown = {"loss": f"{record['loss']:.4f}"}
                 if "val_rmse" in record:
                     shown["val"] = f"{record['val_rmse']:.3f}"
                 bar.set_postfix(shown)
             distributed.barrier(world)
-            if replan_from is not None and replan_from[0] < step < c.steps and not out_of_time:
-                replan(config, record, step, time.time() - started,
-                       (val_started - replan_from[1]) / (step - replan_from[0]), time.time() - val_started, world,
-                       device, out)
-                bar.total, replan_from = c.steps, (step, time.time())
+            replan = None if out_of_time else plan.retime(step, started, val_started, agree(world, device))
+            if replan is not None:
+                record["replan"] = replan
+                planned(f"re-planned {plan.steps} steps for {c.minutes:g} minutes ({plan.step_seconds:.3f} s per "
+                        f"step since the last timing)")
         if world.main:
             record["seconds"] = round(time.time() - started, 2)
             log.write(json.dumps(record) + "\n")
@@ -585,6 +507,16 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
         kept = f"best validation RMSE {best:.3f} in {out / 'best'}" if math.isfinite(best) else f"weights in {out / 'last'}"
         print(f"trained {step} steps in {minutes:.1f} min; {kept}", file=sys.stderr)
     return 0
+
+
+def agree(world: distributed.World, device: torch.device):
+    """The plan's numbers every rank takes: their mean over the ranks, rounded."""
+    def mean(values: tuple) -> tuple:
+        if not world.distributed:
+            return values
+        means = distributed.mean(world, torch.tensor([float(v) for v in values], device=device))
+        return tuple(int(round(float(v))) for v in means)
+    return mean
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from tax3d.geometry import farthest_point_sample, random_angle, rotate_z
 from tax3d.variants import VARIANTS, VariantSpec, variant_spec
 
 
-def make_target(goal: torch.Tensor, frames: dict, spec: VariantSpec, target_scale: float = 1.0) -> torch.Tensor:
+def make_target(goal: torch.Tensor, frames: dict, spec: VariantSpec) -> torch.Tensor:
     """The variant's target for world goal points (..., N, 3): (..., N, 3), or (..., N + M, 3) for SD/SP.
 
     CD: goal in the anchor frame minus action in the action frame; CP: goal in the anchor frame
@@ -38,7 +38,7 @@ def make_target(goal: torch.Tensor, frames: dict, spec: VariantSpec, target_scal
         anchor_target = frames["anchor"]
     if spec.scene:
         target = torch.cat([target, anchor_target], dim=-2)
-    return target * target_scale
+    return target
 
 
 def _sample_indices(points: torch.Tensor, k: int | None, generator: torch.Generator | None) -> torch.Tensor:
@@ -56,7 +56,6 @@ def make_sample(
     num_action_points: int | None = 512,
     num_anchor_points: int | None = 512,
     rotate: bool = False,
-    target_scale: float = 1.0,
     indices: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> dict:
     """One training sample from world-frame action (N, 3), anchor (M, 3) and goal (N, 3) points.
@@ -86,7 +85,7 @@ def make_sample(
     frames = frame_inputs(action, anchor, spec)
     sample = {
         **frames,
-        "target": make_target(goal, frames, spec, target_scale),
+        "target": make_target(goal, frames, spec),
         "goal": goal,
         "angle": torch.tensor(angle, dtype=torch.float64),
         "pivot": pivot,
@@ -131,7 +130,7 @@ class DemoDataset(Dataset):
     Each item is a dict of tensors (Na = num_action_points, Nb = num_anchor_points):
       action (Na, 3), anchor (Nb, 3): inputs in the variant's frames (`frame_inputs`)
       action_mean, anchor_mean (3,): world positions of those frames' origins
-      target (Na, 3), or (Na + Nb, 3) for SD/SP: the variant's target, times target_scale
+      target (Na, 3), or (Na + Nb, 3) for SD/SP: the variant's target
       goal (Na, 3): the world-frame goal of the (possibly rotated) scene; to_world(target, item) returns it
       angle (): the augmentation's z-rotation; pivot (3,): the world point it turned about
       action_idx (Na,) int64: rows of the demo's action cloud; demo_index () int64: position in `files`
@@ -156,7 +155,6 @@ class DemoDataset(Dataset):
         num_action_points: int | None = 512,
         num_anchor_points: int | None = 512,
         train_size: int | None = None,
-        target_scale: float = 1.0,
         seed: int = 0,
         subsets: int = 0,
         grip_weight: float = 1.0,
@@ -165,13 +163,10 @@ class DemoDataset(Dataset):
         self.files = demo_files(sources)
         if train_size is not None and train_size < 1:
             raise UsageError(f"train_size is {train_size}; expected a positive number of samples per epoch")
-        if not target_scale > 0:
-            raise UsageError(f"target_scale is {target_scale}; expected a positive number")
         self.rotate = train if rotate is None else rotate
         self.num_action_points = num_action_points
         self.num_anchor_points = num_anchor_points
         self.train_size = train_size
-        self.target_scale = float(target_scale)
         if not grip_weight > 0:
             raise UsageError(f"grip_weight is {grip_weight}; expected a positive loss weight")
         self.grip_weight = float(grip_weight)
@@ -209,7 +204,7 @@ class DemoDataset(Dataset):
         action, anchor, goal = self.demos[demo_index]
         sample = make_sample(
             action, anchor, goal, self.spec, generator,
-            self.num_action_points, self.num_anchor_points, self.rotate, self.target_scale, indices,
+            self.num_action_points, self.num_anchor_points, self.rotate, indices,
         )
         sample["demo_index"] = torch.tensor(demo_index, dtype=torch.int64)
         if self.grip_weight != 1.0:

@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 ModelFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
-LOSSES = ("epsilon", "x0", "v", "min_snr", "v_capped")
+LOSSES = ("epsilon", "x0", "v")
 
 
 #################################################################################
@@ -94,11 +94,11 @@ class GaussianDiffusion:
     """DDPM forward process, learned-range reverse process, hybrid loss and samplers for a given betas array."""
 
     def __init__(self, betas: Sequence[float] | np.ndarray, learn_sigma: bool = True, fixed_variance: str = "large",
-                 loss: str = "epsilon", min_snr_gamma: float = 5.0):
+                 loss: str = "epsilon"):
         betas = np.asarray(betas, dtype=np.float64)
         if loss not in LOSSES:
             raise ValueError(f"loss must be one of {', '.join(LOSSES)}, got {loss!r}")
-        self.loss, self.min_snr_gamma = loss, float(min_snr_gamma)
+        self.loss = loss
         if betas.ndim != 1 or not ((betas > 0) & (betas <= 1)).all():
             raise ValueError("betas must be a 1-d array in (0, 1]")
         if fixed_variance not in ("large", "small"):
@@ -159,7 +159,7 @@ class GaussianDiffusion:
         if isinstance(use_timesteps, int):
             use_timesteps = space_timesteps(self.num_timesteps, use_timesteps)
         spaced = SpacedDiffusion(self.betas, use_timesteps, learn_sigma=self.learn_sigma,
-                                 fixed_variance=self.fixed_variance, loss=self.loss, min_snr_gamma=self.min_snr_gamma)
+                                 fixed_variance=self.fixed_variance, loss=self.loss)
         spaced.timestep_map = self.timestep_map[spaced.timestep_map]
         return spaced
 
@@ -239,11 +239,9 @@ class GaussianDiffusion:
 
     def x0_loss_weight(self, t: torch.Tensor) -> torch.Tensor:
         """w(t) of the mean term, written as w(t) times the MSE of the implied x_0 (Hang et al. 2023, Min-SNR):
-        epsilon: SNR(t) (the epsilon MSE); x0: 1; v: SNR(t) + 1 (the velocity MSE); min_snr: min(SNR(t), gamma);
-        v_capped: min(SNR(t) + 1, gamma), the v weighting capped so the noisiest steps keep 1/gamma of the most."""
+        epsilon: SNR(t) (the epsilon MSE); x0: 1; v: SNR(t) + 1 (the velocity MSE)."""
         snr = torch.from_numpy(self.snr).to(t.device)[t]
-        weights = {"epsilon": snr, "x0": torch.ones_like(snr), "v": snr + 1.0,
-                   "min_snr": snr.clamp(max=self.min_snr_gamma), "v_capped": (snr + 1.0).clamp(max=self.min_snr_gamma)}
+        weights = {"epsilon": snr, "x0": torch.ones_like(snr), "v": snr + 1.0}
         return weights[self.loss]
 
     def training_losses(self, model_fn: ModelFn, x_start: torch.Tensor, t: torch.Tensor,

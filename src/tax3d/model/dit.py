@@ -55,20 +55,6 @@ class TimestepEmbedder(nn.Module):
         return self.mlp(self.sinusoid(t))  # (B, D)
 
 
-class MeanEmbedder(nn.Module):
-    """Embeds the mean of the noised input over its points, the cloud's global translation, for the adaLN
-    conditioning. Scaled by sqrt(N) its noise has unit variance at every timestep; symlog, sign(z) log(1 + |z|),
-    keeps the low-noise values (tens) within a few units (Hafner et al. 2023, DreamerV3)."""
-
-    def __init__(self, in_channels: int, hidden_size: int):
-        super().__init__()
-        self.mlp = nn.Sequential(nn.Linear(in_channels, hidden_size), nn.SiLU(), nn.Linear(hidden_size, hidden_size))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        z = x.mean(1) * math.sqrt(x.shape[1])  # (B, C)
-        return self.mlp(torch.sign(z) * torch.log1p(z.abs()))  # (B, D)
-
-
 #################################################################################
 #                          Attention and MLP layers                             #
 #################################################################################
@@ -204,7 +190,6 @@ class _PointDiT(nn.Module):
 
     hidden_size: int
     time_conditioning: bool
-    mean_embedder: "MeanEmbedder | None"
     blocks: nn.ModuleList
     final_layer: FinalLayer
 
@@ -221,7 +206,6 @@ class _PointDiT(nn.Module):
         # Without time conditioning (regression variants RD/RP) the conditioning vector is zeros: SiLU(0) = 0,
         # so every adaLN Linear reduces to its bias, a learned constant shift/scale/gate per block.
         self.t_embedder = TimestepEmbedder(self.hidden_size) if time_conditioning else None
-        self.mean_embedder = None
 
     def conditioning(self, t: torch.Tensor | None, batch_size: int, like: torch.Tensor) -> torch.Tensor:
         if self.t_embedder is None:
@@ -247,9 +231,6 @@ class _PointDiT(nn.Module):
         if self.t_embedder is not None:
             nn.init.normal_(self.t_embedder.mlp[0].weight, std=0.02)
             nn.init.normal_(self.t_embedder.mlp[2].weight, std=0.02)
-        if self.mean_embedder is not None:
-            nn.init.normal_(self.mean_embedder.mlp[0].weight, std=0.02)
-            nn.init.normal_(self.mean_embedder.mlp[2].weight, std=0.02)
 
         # adaLN-Zero: zero every modulation layer so each block starts as the identity (gates = 0), and zero the
         # output layer so the fresh network predicts exactly 0 (epsilon = 0, variance interpolation v = 0).
@@ -275,7 +256,6 @@ class DiTPointCloudCross(_PointDiT):
         learn_sigma: bool = True,
         action_context: bool = True,
         time_conditioning: bool = True,
-        mean_input: bool = False,
     ):
         super().__init__()
         self._setup(in_channels, hidden_size, num_heads, learn_sigma)
@@ -291,8 +271,6 @@ class DiTPointCloudCross(_PointDiT):
             self.action_embedder = None
         self.anchor_embedder = nn.Linear(in_channels, hidden_size)
         self._make_conditioning(time_conditioning)
-        if mean_input:
-            self.mean_embedder = MeanEmbedder(in_channels, hidden_size)
 
         self.blocks = nn.ModuleList([DiTCrossBlock(hidden_size, num_heads, mlp_ratio) for _ in range(depth)])
         self.final_layer = FinalLayer(hidden_size, self.out_channels)
@@ -316,8 +294,6 @@ class DiTPointCloudCross(_PointDiT):
             h = torch.cat([h, self.action_embedder(action)], dim=-1)  # (B, N, D)
         y = self.anchor_embedder(anchor)  # (B, M, D)
         c = self.conditioning(t, B, h)  # (B, D)
-        if self.mean_embedder is not None:
-            c = c + self.mean_embedder(x)  # (B, D)
         for block in self.blocks:
             h = block(h, y, c)  # (B, N, D)
         return self.final_layer(h, c)  # (B, N, out_channels)

@@ -39,7 +39,7 @@ def build_network(config: cfg.Config) -> nn.Module:
     if spec.scene:
         return DiTPointCloudScene(learn_sigma=learn_sigma, time_conditioning=spec.diffusion, **size)
     return DiTPointCloudCross(learn_sigma=learn_sigma, action_context=spec.action_context,
-                              time_conditioning=spec.diffusion, mean_input=m.mean_input and spec.diffusion, **size)
+                              time_conditioning=spec.diffusion, **size)
 
 
 class Tax3D(nn.Module):
@@ -218,12 +218,11 @@ class Tax3D(nn.Module):
         carry = frames.pop("carry", None)
         out = self.sample(frames["action"].expand(num_samples, -1, -1), frames["anchor"].expand(num_samples, -1, -1),
                           steps, sampler, generator, return_trajectory, progress)
-        scale = self.config.data.target_scale
         if return_trajectory:
-            goals = self._carry(to_world(out[0], frames, self.spec, scale), carry)
-            trajectory = self._carry(to_world(out[1], frames, self.spec, scale), carry)
+            goals = self._carry(to_world(out[0], frames, self.spec), carry)
+            trajectory = self._carry(to_world(out[1], frames, self.spec), carry)
             return (goals.cpu().numpy(), trajectory.cpu().numpy()) if as_numpy else (goals, trajectory)
-        goals = self._carry(to_world(out, frames, self.spec, scale), carry)
+        goals = self._carry(to_world(out, frames, self.spec), carry)
         return goals.cpu().numpy() if as_numpy else goals
 
     @torch.no_grad()
@@ -245,7 +244,6 @@ class Tax3D(nn.Module):
         by_size: dict[tuple, list[int]] = {}
         for i, f in enumerate(frames):
             by_size.setdefault((f["action"].shape[0], f["anchor"].shape[0]), []).append(i)
-        scale = self.config.data.target_scale
         chunks = [indices[start:start + batch_scenes] for indices in by_size.values()
                   for start in range(0, len(indices), batch_scenes)]
         # one bar over every denoising step of every batch: a long prediction shows its progress step by step
@@ -258,7 +256,7 @@ class Tax3D(nn.Module):
                               progress=bar if progress and self.spec.diffusion else False)
             if not self.spec.diffusion:
                 bar.update(1)
-            goals = to_world(out, stacked, self.spec, scale).reshape(len(chunk), num_samples, -1, 3)
+            goals = to_world(out, stacked, self.spec).reshape(len(chunk), num_samples, -1, 3)
             for i, g in zip(chunk, goals):
                 results[i] = self._carry(g, carries[i]).cpu().numpy()
         bar.close()

@@ -34,7 +34,8 @@ from tax3d.data.format import data_task
 from tax3d.devices import pick_device
 from tax3d.errors import UsageError
 from tax3d.options import OutputFolder
-from tax3d.train import STATE_NAME, cosine_lr, find_last, save_checkpoint, truncate_log
+from tax3d.plan import cosine_lr
+from tax3d.train import STATE_NAME, find_last, save_checkpoint, truncate_log
 
 ADAM_BETAS = (0.95, 0.999)  # DP3's optimiser settings (docs/dp3.md)
 EMA_POWER, EMA_MAX = 0.75, 0.9999  # DP3's EMA: decay 1 - (1 + step)^-0.75, capped
