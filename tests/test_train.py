@@ -350,6 +350,18 @@ def test_minutes_plan_fixes_steps_and_resume_keeps_them(tmp_path, demos, monkeyp
     assert read_log(out)[-1]["step"] == 60
 
 
+def test_the_bar_shows_no_total_until_the_plan(tmp_path, demos, monkeypatch, capsys):
+    """Before a --train.minutes plan fixes the steps, the bar has no total (so no ETA from the preset's steps)."""
+    import re
+
+    fake_step_clock(monkeypatch, lambda n: 0.5)
+    assert main(["train", *TINY, "--out", str(tmp_path / "run"), "--data.train", str(demos), "--data.val", str(demos),
+                 *PLANNED]) == 0
+    before, after = capsys.readouterr().err.split("planned 60 steps", 1)
+    assert "train:" in before and not re.search(r"\d+/\d+", before)
+    assert "/60" in after
+
+
 @pytest.mark.parametrize("later, steps", [(1.0, 36), (0.25, 108)])
 def test_minutes_plan_is_timed_again_at_the_first_validation(tmp_path, demos, monkeypatch, later, steps):
     """Timed again at the first validation, a plan whose steps have slowed (or sped up) since the warm-up is

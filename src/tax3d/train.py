@@ -388,7 +388,10 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                         persistent_workers=c.num_workers > 0, worker_init_fn=ignore_interrupts)
     batches = iter(loader)
     log = open(out / "log.jsonl", "a" if last is not None else "w") if world.main else None
-    bar = tqdm(total=c.steps, initial=step, desc="train", dynamic_ncols=True, disable=not world.main)
+    # a --train.minutes run shows no total (and no ETA) until its plan fixes the steps
+    unplanned = c.minutes > 0 and plan.step_seconds == 0
+    bar = tqdm(total=None if unplanned else c.steps, initial=step, desc="train", dynamic_ncols=True,
+               disable=not world.main)
     model.train()
     started = time.time() - elapsed
     share = world.share(c.batch_size)
