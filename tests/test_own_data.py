@@ -3,15 +3,12 @@ Python snippet on the checkpoint the block trained."""
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from tests.test_readme import TINY
+from tests.test_readme import run_tiny
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "own-data.md"
@@ -31,17 +28,7 @@ def test_the_page_is_linked_from_the_readme_and_its_commands_have_tiny_sizes():
 def test_the_page_runs_as_written(tmp_path):
     (block,) = blocks("bash")
     (snippet,) = blocks("python")
-    cases = "\n".join(f"        {name}) extra='{options}' ;;" for name, options in TINY.items())
-    script = f"""set -euo pipefail
-tax3d() {{
-    local extra=""
-    case "$1" in
-{cases}
-    esac
-    if [ "$1" = train ]; then extra="$extra --train.minutes 0"; fi
-    command tax3d "$@" $extra
-}}
-{block}
+    checks = f"""
 test -f runs/mine/pred.json && test -d runs/mine/best && test -d runs/mine/last
 python - <<'EOF'
 {snippet}
@@ -51,9 +38,5 @@ assert json.load(open("runs/mine/best/config.json"))["data"]["task"] == "custom"
 assert np.load("runs/mine/pred.npz")["goals"].shape == (2, 5, 300, 3)
 EOF
 """
-    bin_dir = Path(sys.executable).parent
-    env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}", "OMP_NUM_THREADS": "1"}
-    done = subprocess.run(["bash", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=600)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    done = run_tiny(block + checks, tmp_path, 600, train_extra="--train.minutes 0")
     assert "predictions: runs/mine/pred.npz" in done.stderr

@@ -39,24 +39,31 @@ def test_every_command_of_the_block_has_a_tiny_size():
     assert "generate" in commands and "train" in commands and "eval" in commands
 
 
-@pytest.mark.slow
-def test_readme_commands_run_as_written(tmp_path):
-    block = readme_block().replace(". .venv/bin/activate\n", "")
+def run_tiny(block: str, folder: Path, timeout: int, train_extra: str = "") -> subprocess.CompletedProcess:
+    """A bash block run in `folder` with each `tax3d` call given its tiny options (and `train_extra` on train)."""
     cases = "\n".join(f"        {name}) extra='{options}' ;;" for name, options in TINY.items())
+    extra = f'    if [ "$1" = train ]; then extra="$extra {train_extra}"; fi\n' if train_extra else ""
     script = f"""set -euo pipefail
 tax3d() {{
     local extra=""
     case "$1" in
 {cases}
     esac
-    command tax3d "$@" $extra
+{extra}    command tax3d "$@" $extra
 }}
-{block}
-test -f runs/cd/pred.json && test -d runs/cd/best && test -f out/eval/results.json
-test -f runs/benchmark/results.md && test -d runs/dp3/last
-"""
+{block}"""
     bin_dir = Path(sys.executable).parent
     env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}", "OMP_NUM_THREADS": "1"}
-    done = subprocess.run(["bash", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=900)
+    done = subprocess.run(["bash", "-c", script], cwd=folder, env=env, capture_output=True, text=True,
+                          timeout=timeout)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    return done
+
+
+@pytest.mark.slow
+def test_readme_commands_run_as_written(tmp_path):
+    block = readme_block().replace(". .venv/bin/activate\n", "")
+    run_tiny(block + """
+test -f runs/cd/pred.json && test -d runs/cd/best && test -f out/eval/results.json
+test -f runs/benchmark/results.md && test -d runs/dp3/last
+""", tmp_path, 900)
