@@ -14,6 +14,7 @@ torch.compile, and batch sizes 8 / 32. Without --train, random clouds stand in f
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -165,8 +166,6 @@ def threads(config: cfg.Config, rounds: int) -> dict:
 
 def levers(config: cfg.Config, rounds: int) -> dict:
     """Seconds per step without data (random batches), each lever interleaved with the others round by round."""
-    import dataclasses
-
     def with_batch(b):
         return dataclasses.replace(config, train=dataclasses.replace(config.train, batch_size=b))
 

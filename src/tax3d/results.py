@@ -27,6 +27,7 @@ from typing import Optional
 
 import tyro
 
+from tax3d import table
 from tax3d.atomic import write_bytes
 from tax3d.commands import EARLIER, shown
 from tax3d.errors import UsageError
@@ -252,8 +253,6 @@ class Page:
     # -- the page -------------------------------------------------------------------------------------------------
     def protocol(self) -> list[str]:
         """The paper's table beside the rows of `tax3d benchmark` (docs/results/table/TASK/), when there are any."""
-        from tax3d import table
-
         rows = table.load_rows(self.root / "table" / self.spec.get("task", ""))
         if not rows:
             return []
