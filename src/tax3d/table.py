@@ -2,7 +2,9 @@
 
 Rows are kept as docs/results/table/TASK/DEMOS/VARIANT.json (kind "table-row"): one protocol for all of them
 (weights chosen on `val`, scored once on the test episodes). Every row of the paper's table is listed; a row we
-have not run yet says so.
+have not run yet says so. Below it, each conclusion the paper draws from the table (its `claims` in paper.toml)
+is tested on our rows: a success rate is lower only when the two 95% intervals part ("holds"); when they overlap
+the difference is "within noise".
 """
 
 from __future__ import annotations
@@ -68,6 +70,73 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[s
                          f"{_success(row, 'ood')} | {theirs['success'][2]:.2f} | {_rmse(row, 'unseen')} | "
                          f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} |")
         lines.append("")
+    lines += conclusions(paper, rows)
+    return lines
+
+
+HOLDS, FAILS, NOISE, MISSING = "holds", "does not hold", "within noise", "not run yet"
+
+
+def _value(row: dict, split: str, metric: str):
+    s = row["splits"][split]
+    return s["success_rate"] if metric == "success" else s.get(metric)
+
+
+def _check(kept: dict, paper_rows: dict, claim: dict, worse: str, than: str | None) -> tuple[str, str]:
+    """(verdict, the numbers behind it) of one comparison of a claim."""
+    metric = claim.get("metric", "success")
+    key, split = worse.split(":")
+    row = kept.get(key)
+    if row is None or (than is not None and kept.get(than.split(":")[0]) is None):
+        return MISSING, f"{NAMES.get(key, key)} {split}: {MISSING}"
+    if than is None:  # `reaches`: our success against the paper's
+        ours, theirs = row["splits"][split], paper_rows[key]["success"][("train", "unseen", "ood").index(split)]
+        verdict = HOLDS if ours["success_rate"] >= theirs - claim.get("margin", 0.0) - 1e-9 else FAILS
+        return verdict, f"{NAMES.get(key, key)} {split} {ours['success_rate']:.2f} (paper {theirs:.2f})"
+    other_key, other_split = than.split(":")
+    other = kept[other_key]
+    a, b = _value(row, split, metric), _value(other, other_split, metric)
+    text = f"{NAMES.get(key, key)} {split} {a:.2f} vs {NAMES.get(other_key, other_key)} {other_split} {b:.2f}"
+    if metric != "success":  # an RMSE: worse when it is `factor` times the other's
+        return (HOLDS if a > claim.get("factor", 1.0) * b else FAILS), text
+    if a >= b:
+        return FAILS, text
+    high, low = row["splits"][split]["success_ci95"][1], other["splits"][other_split]["success_ci95"][0]
+    return (HOLDS if high < low else NOISE), text
+
+
+def _verdict(verdicts: list[str]) -> str:
+    for v in (MISSING, FAILS, NOISE):
+        if v in verdicts:
+            return v
+    return HOLDS
+
+
+def conclusions(paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
+    """Each of the paper's claims about this table, tested on our rows of each training-set size that has the
+    rows it needs (the largest size lists every claim, those waiting on a row as not run yet)."""
+    claims, paper_rows = paper.get("claims", []), paper.get("rows", {})
+    if not claims or not rows:
+        return []
+    lines = ["**Conclusions.** Each claim the paper draws from this table, tested on our rows: a success is lower when "
+             "the two 95% intervals part; an RMSE claim needs the stated factor.", ""]
+    for demos in sorted(rows):
+        table = []
+        for claim in claims:
+            pairs = ([(w, None) for w in claim["reaches"]] if "reaches" in claim
+                     else list(zip(claim["worse"], claim["than"], strict=True)))
+            checks = [_check(rows[demos], paper_rows, claim, w, t) for w, t in pairs]
+            verdict = _verdict([v for v, _ in checks])
+            if verdict == MISSING and demos != max(rows):
+                continue
+            test = ("at or above the paper's minus %.2f" % claim.get("margin", 0.0) if "reaches" in claim
+                    else "lower success" if claim.get("metric", "success") == "success"
+                    else f"{claim['metric'].replace('_', ' ')} over {claim.get('factor', 1.0):g}x")
+            numbers = "; ".join(text for v, text in checks if v != MISSING) or "-"
+            table.append(f"| {claim['claim']} ({claim['where']}) | {test} | {numbers} | **{verdict}** |")
+        if table:
+            lines += [f"{demos} training demonstrations:", "", "| the paper's claim | test | ours | verdict |",
+                      "| --- | --- | --- | --- |", *table, ""]
     return lines
 
 
