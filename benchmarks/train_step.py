@@ -8,7 +8,8 @@ data (the next batch from the run's own DataLoader), forward (the loss), backwar
 EMA) and the rest; the FLOPs of a step (torch's counter); and so the fraction of this core's float32 and bfloat16
 matmul peaks, measured in the same run (a timed 1024 x 1024 torch.mm). With --levers, the step alone (no data) under
 each speed lever, interleaved round by round so that a disturbance lands on all of them alike: bf16 autocast,
-torch.compile, and batch sizes 8 / 32. Without --train, random clouds stand in for the demos (no data phase).
+torch.compile, the math attention kernel in place of the one torch picks (flash on CPU), and batch sizes
+8 / 32. Without --train, random clouds stand in for the demos (no data phase).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from torch.utils.data import DataLoader
+from torch.nn.attention import SDPBackend, sdpa_kernel
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -63,8 +65,10 @@ def demo_batches(config: cfg.Config, train: list[str]):
 class Step:
     """One training step of `config`, as the loop in tax3d.train makes it, with a timer around each phase."""
 
-    def __init__(self, config: cfg.Config, batches, bf16: bool = False, compiled: bool = False):
+    def __init__(self, config: cfg.Config, batches, bf16: bool = False, compiled: bool = False,
+                 attention: SDPBackend | None = None):
         torch.manual_seed(0)
+        self.attention = attention  # a scaled_dot_product_attention kernel forced for the step (None: torch's pick)
         self.config, self.batches = config, batches
         self.model = Tax3D(config)
         self.ema = [p.detach().clone() for p in self.model.net.parameters()]
@@ -77,6 +81,12 @@ class Step:
         self.step = 0
 
     def __call__(self) -> dict:
+        if self.attention is None:
+            return self._step()
+        with sdpa_kernel(self.attention):
+            return self._step()
+
+    def _step(self) -> dict:
         c, marks = self.config.train, [time.perf_counter()]
         batch = next(self.batches)
         marks.append(time.perf_counter())
@@ -171,6 +181,7 @@ def levers(config: cfg.Config, rounds: int) -> dict:
 
     steps = {"fp32": Step(config, random_batches(config)), "bf16": Step(config, random_batches(config), bf16=True),
              "compile": Step(config, random_batches(config), compiled=True),
+             "math_attention": Step(config, random_batches(config), attention=SDPBackend.MATH),
              "batch8": Step(with_batch(8), random_batches(with_batch(8))),
              "batch32": Step(with_batch(32), random_batches(with_batch(32)))}
     for step in steps.values():
@@ -184,7 +195,8 @@ def levers(config: cfg.Config, rounds: int) -> dict:
             times[name].append(time.perf_counter() - start)
     out = {k: {"step_seconds": float(np.median(v))} for k, v in times.items()}
     base = out["fp32"]["step_seconds"]
-    for name, batch in (("fp32", 16), ("bf16", 16), ("compile", 16), ("batch8", 8), ("batch32", 32)):
+    for name, batch in (("fp32", 16), ("bf16", 16), ("compile", 16), ("math_attention", 16), ("batch8", 8),
+                        ("batch32", 32)):
         out[name]["speedup"] = base / out[name]["step_seconds"]
         out[name]["samples_per_second_ratio"] = (batch / out[name]["step_seconds"]) / (16 / base)
     out["rounds"] = rounds
