@@ -98,3 +98,10 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
         (tmp_path / "data" / "train-traj" / f"demo_{i}.npz").write_bytes(b"")
     assert benchmark._train(args, "dp3", tmp_path / "data").name == "last"
     assert trained[0].train.minutes == 30 and trained[0].data.task == "hangproccloth-unimodal"
+
+
+def test_a_row_records_the_benchmark_command(monkeypatch):
+    from tax3d import benchmark
+
+    monkeypatch.setattr("sys.argv", ["tax3d", "benchmark", "--task", "hangbag", "--keep", "docs/a b"])
+    assert benchmark.command() == "tax3d benchmark --task hangbag --keep 'docs/a b'"

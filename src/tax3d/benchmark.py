@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shlex
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Literal
@@ -170,12 +172,18 @@ def _score(args: Args, variant: str, checkpoint: Path, data: Path) -> dict:
            "weights_sha256": summary["weights_sha256"], "validations": validations, "config": config,
            "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
                     "scorings": (row or {}).get("test", {}).get("scorings", 0) + 1},
-           "splits": summary["splits"], "command": summary["command"], "machine": summary["machine"],
+           "splits": summary["splits"], "command": command(), "machine": summary["machine"],
            "date": summary["date"]}
     write_json(path, row)
     if args.keep is not None:
         write_json(args.keep / f"{variant}.json", row)
     return row
+
+
+def command() -> str:
+    """The command line of this benchmark, as a page shows it."""
+    return ("tax3d benchmark " + shlex.join(sys.argv[2:]) if sys.argv[1:2] == ["benchmark"]
+            else "tax3d.benchmark")
 
 
 def _check(args: Args) -> list[str]:
