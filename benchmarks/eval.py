@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from tax3d import provenance
+from tax3d import kept
 from tax3d.demo import SHIPPED
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,7 +41,7 @@ def main() -> None:
         common = dict(checkpoint=args.checkpoint, splits="unseen", steps=args.steps, first_index=2000, out=Path(out))
         wall1, one = timed(Args(episodes=args.episodes, **common), 1)
         wall2, two = timed(Args(episodes=2 * args.episodes, **common), 2)
-    print(json.dumps({
+    print(json.dumps(kept.stamp("eval-benchmark", {
         "command": "python " + " ".join(sys.argv),
         "checkpoint": str(args.checkpoint.resolve().relative_to(ROOT) if args.checkpoint.resolve().is_relative_to(ROOT)
                           else args.checkpoint),
@@ -52,7 +53,7 @@ def main() -> None:
         "throughput_ratio_2_workers": round((len(two) / wall2) / (len(one) / wall1), 3),
         "episodes": [len(one), len(two)],
         "success": [sum(r["success"] for r in one), sum(r["success"] for r in two)],
-    }, indent=2))
+    }), indent=2))
 
 
 if __name__ == "__main__":

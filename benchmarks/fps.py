@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from tax3d import geometry, provenance
+from tax3d import kept
 from tax3d.data.dataset import demo_files, make_sample
 from tax3d.data.format import load_demo
 
@@ -134,7 +135,7 @@ def main() -> int:
         result["numpy_real_clouds"] = real["numpy"]
         if "fpsample" in real:
             result["fpsample"]["real_clouds"] = real["fpsample"]
-    print(json.dumps(result, indent=1))
+    print(json.dumps(kept.stamp("fps-benchmark", result), indent=1))
     return 0
 
 

@@ -24,6 +24,7 @@ import torch
 from torch.utils.flop_counter import FlopCounterMode, sdpa_backward_flop_count, sdpa_flop_count
 
 from tax3d import config as cfg
+from tax3d import kept
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.metrics import min_of_samples_rmse, rmse
@@ -275,7 +276,7 @@ def main() -> None:
         out["precision"] = precision_steps(args.rounds)
     if "large" in parts:
         out["large_clouds"] = large_clouds(args.checkpoint, args.samples, args.rounds)
-    print(json.dumps(out))
+    print(json.dumps(kept.stamp("model-benchmark", out)))
 
 
 if __name__ == "__main__":

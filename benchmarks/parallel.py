@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from tax3d import provenance
+from tax3d import kept
 from tax3d.data.format import list_demos, load_demo
 from tax3d.sim.generate import Args, generate
 
@@ -50,14 +51,14 @@ def main() -> int:
         local = timed_generate(args.task, args.demos, args.workers, "local", Path(tmp) / "local")
         ray = timed_generate(args.task, args.demos, args.workers, "ray", Path(tmp) / "ray")
         identical = same_demos(Path(tmp) / "local", Path(tmp) / "ray")
-    print(json.dumps({
+    print(json.dumps(kept.stamp("parallel-benchmark", {
         "command": "python " + " ".join(sys.argv),
         "machine": provenance.machine(),
         "date": provenance.today(), "task": args.task, "demos": args.demos, "workers": args.workers,
         "local_seconds": local, "ray_seconds": ray,
         "local_demos_per_second": args.demos / local, "ray_demos_per_second": args.demos / ray,
         "throughput_ratio_ray_vs_local": local / ray, "identical_demos": identical,
-    }, indent=2))
+    }), indent=2))
     return 0
 
 

@@ -16,6 +16,7 @@ import sys
 import numpy as np
 
 from tax3d import provenance
+from tax3d import kept
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.metrics import rmse
@@ -53,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
               "date": provenance.today(), "machine": provenance.machine(), "checkpoint": args.checkpoint,
               "demos": len(demos), "samples": args.samples, "seed": args.seed,
               "samplers": compare(model, demos, args.samples, args.seed, args.max_points)}
-    print(json.dumps(result, indent=1))
+    print(json.dumps(kept.stamp("samplers", result), indent=1))
     return 0
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from tax3d import provenance
+from tax3d import kept
 from tax3d.sim.cloth import SIMPLE_CLOTH
 from tax3d.sim.env import SIM_STEPS_PER_ACTION, env_class
 from tax3d.sim.generate import Args, generate
@@ -50,7 +51,7 @@ def main() -> None:
     steps = sim_steps_per_second(args.task)
     wall1, stats1 = episodes_wall(args.task, args.episodes, 1)
     wall2, stats2 = (None, None) if args.one_worker else episodes_wall(args.task, 2 * args.episodes, 2)
-    print(json.dumps({
+    print(json.dumps(kept.stamp("sim-benchmark", {
         "command": "python " + " ".join(sys.argv),
         "task": args.task,
         "machine": provenance.machine(),
@@ -61,7 +62,7 @@ def main() -> None:
         "throughput_ratio_2_workers": None if wall2 is None
         else round((stats2["episodes"] / wall2) / (stats1["episodes"] / wall1), 3),
         "episodes": [stats1["episodes"]] + ([] if stats2 is None else [stats2["episodes"]]),
-    }, indent=2))
+    }), indent=2))
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from tax3d.data.format import save_demo
+from tax3d import kept
 from tax3d.checkpoint import read_log
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -119,7 +120,7 @@ def main() -> None:
         "speedup_2_processes_vs_1": round(one / two, 3),
         "speedup_2_processes_vs_1_process_2_threads": round(runs["1_process_2_threads"]["step_s"] / two, 3),
     }
-    print(json.dumps(result, indent=2))
+    print(json.dumps(kept.stamp("train-ddp-benchmark", result), indent=2))
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from model import ATTENTION_FLOPS, best_time  # noqa: E402  (benchmarks/model.py)
 from tax3d import config as cfg  # noqa: E402
 from tax3d import distributed, provenance  # noqa: E402
+from tax3d import kept  # noqa: E402
 from tax3d.data.dataset import DemoDataset  # noqa: E402
 from tax3d.model.tax3d import Tax3D  # noqa: E402
 from tax3d.train import EpochItems, StepBatches, TrainingLoss, ema_decay  # noqa: E402
@@ -233,7 +234,7 @@ def main(argv=None) -> int:
         result["top_ops"] = top_ops(first)
         result["two_threads"] = threads(first, args.rounds)
     result["peaks_again"] = {"fp32": matmul_peak(torch.float32), "bf16": matmul_peak(torch.bfloat16)}
-    text = json.dumps(result, indent=2)
+    text = json.dumps(kept.stamp("train-step-benchmark", result), indent=2)
     if args.out:
         args.out.write_text(text + "\n")
     print(text)

@@ -1,4 +1,4 @@
-"""Copy demonstration files without their per-step trajectories (the `traj_` arrays only DP3 learns from).
+"""Kept as a script, being neither a command nor a measurement: copies demonstrations without their trajectories.
 
     python scripts/strip_trajectories.py SRC_DIR DST_DIR
 

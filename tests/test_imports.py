@@ -1,4 +1,5 @@
-"""The package's import graph: no two modules import each other, and inference does not import the training data.
+"""The package's import graph: no two modules import each other, the results tooling has no cycle and imports
+tax3d modules at module level only, and inference does not import the training data.
 
 The graph holds every import of a tax3d module, at module level or inside a function (one there must not hide a
 cycle)."""
@@ -9,9 +10,7 @@ import ast
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
-
-# Known, and to be undone by the results tooling's own rework (issue 42, item 3): results.py and results_pages.py.
-KNOWN_MUTUAL = {frozenset({"tax3d.results", "tax3d.results_pages"})}
+RESULTS_TOOLING = ("tax3d.results", "tax3d.kept", "tax3d.pages")
 
 
 def module_name(path: Path) -> str:
@@ -46,8 +45,40 @@ def graph() -> dict[str, set[str]]:
 def test_no_two_modules_import_each_other():
     g = graph()
     mutual = {frozenset({a, b}) for a, targets in g.items() for b in targets if a in g.get(b, ())}
-    assert mutual - KNOWN_MUTUAL == set()
-    assert KNOWN_MUTUAL <= mutual, "a known pair no longer imports each other: drop it from KNOWN_MUTUAL"
+    assert mutual == set()
+
+
+def tooling(name: str) -> bool:
+    return any(name == m or name.startswith(m + ".") for m in RESULTS_TOOLING)
+
+
+def test_the_results_tooling_has_no_import_cycle():
+    g = {name: {t for t in targets if tooling(t)} for name, targets in graph().items() if tooling(name)}
+    assert {"tax3d.results", "tax3d.kept", "tax3d.pages.task", "tax3d.pages.card"} <= set(g)
+    done: set[str] = set()
+
+    def visit(name: str, path: tuple[str, ...]) -> None:
+        assert name not in path, " -> ".join((*path, name))
+        if name not in done:
+            for target in g.get(name, ()):
+                visit(target, (*path, name))
+            done.add(name)
+
+    for name in g:
+        visit(name, ())
+
+
+def test_the_results_tooling_imports_tax3d_modules_at_module_level_only():
+    for path in sorted(SRC.joinpath("tax3d").rglob("*.py")):
+        if not tooling(module_name(path)):
+            continue
+        for function in ast.walk(ast.parse(path.read_text())):
+            if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for node in ast.walk(function):
+                    names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                             [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+                    assert not any(n.startswith("tax3d") or (isinstance(node, ast.ImportFrom) and node.level)
+                                   for n in names), f"{path.name}: {function.name} imports {names}"
 
 
 def test_the_model_and_the_config_do_not_import_the_training_data():

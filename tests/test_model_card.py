@@ -1,42 +1,69 @@
-"""scripts/model_card.py: a checkpoint's card from its log and evaluation (the training study's section is built by
-`tax3d results training`: tests/test_results.py)."""
+"""Model cards: each shipped checkpoint's README.md is built by `tax3d results` from its config.json, kept evaluation
+and kept log (docs/results/pages/model-cards.toml), and `tax3d results --check` catches a card that drifted."""
 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
+import shutil
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import tiny_model
+from tax3d import kept
+from tax3d.cli import main
+from tests.conftest import one_line_error, tiny_model
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path):
-    checkpoint = tmp_path / "tax3d-cd-x"
+def evaluation(task: str, splits: dict, **extra) -> dict:
+    return kept.stamp("eval", {"summary": {"task": task, "date": "2026-01-01", "machine": "m",
+                                           "command": "tax3d eval --checkpoint runs/x/best", "splits": splits,
+                                           **extra}})
+
+
+def repository(tmp_path: Path, cards: list[dict], files: dict[str, dict]) -> Path:
+    """A repository with docs/results (the paper's tables, a cards declaration, kept JSON); returns docs/results."""
+    root = tmp_path / "docs" / "results"
+    (root / "pages").mkdir(parents=True)
+    shutil.copy(ROOT / "docs" / "results" / "paper.toml", root / "paper.toml")
+    lines = ['kind = "cards"']
+    for card in cards:
+        lines += ["[[card]]", *[f"{key} = {json.dumps(value)}" for key, value in card.items()]]
+    (root / "pages" / "model-cards.toml").write_text("\n".join(lines) + "\n")
+    for rel, data in files.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(json.dumps(data))
+    return root
+
+
+def checkpoint(tmp_path: Path, name: str, **settings) -> None:
     model = tiny_model()
-    model.config.data.task = "hangproccloth-unimodal"
-    model.config.data.train = ("data/unimodal/train256",)
-    model.save_pretrained(checkpoint)
-    log = tmp_path / "log.jsonl"
-    log.write_text("".join(json.dumps(r) + "\n" for r in [
-        {"step": 1, "loss": 1.0, "seconds": 1.0, "plan": {"minutes": 30.0}},
-        {"step": 2, "loss": 0.5, "seconds": 120.0, "val_rmse": 0.8},
-        {"step": 3, "loss": 0.4, "seconds": 1800.0, "val_rmse": 0.6}]))
-    summary = {"summary": {"task": "hangproccloth-unimodal", "date": "2026-01-01", "machine": "m",
-                           "command": "tax3d eval ...", "splits": {
-                               "unseen": {"episodes": 40, "success_rate": 0.875, "rmse": 0.61, "coverage_rmse": 0.3},
-                               "ood": {"episodes": 40, "success_rate": 0.5, "rmse": 0.9, "coverage_rmse": None}}}}
-    evaluation = tmp_path / "eval.json"
-    evaluation.write_text(json.dumps(summary))
-    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "model_card.py"), str(checkpoint), "--log", str(log),
-                           "--eval", str(evaluation), "--data-command", "DATA", "--train-command", "TRAIN"],
-                          capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    card = (checkpoint / "README.md").read_text()
+    for dotted, value in settings.items():
+        section, key = dotted.split("__")
+        setattr(getattr(model.config, section), key, value)
+    model.save_pretrained(tmp_path / "checkpoints" / name)
+
+
+def built(root: Path, name: str) -> str:
+    assert main(["results", "--root", str(root)]) == 0
+    return (root.parent.parent / "checkpoints" / name / "README.md").read_text()
+
+
+LOG = kept.stamp("train-log", {"source": "runs/x/log.jsonl", "records": [
+    {"step": 1, "loss": 1.0, "seconds": 1.0, "plan": {"minutes": 30.0}},
+    {"step": 2, "loss": 0.5, "seconds": 120.0, "val_rmse": 0.8},
+    {"step": 3, "loss": 0.4, "seconds": 1800.0, "val_rmse": 0.6}]})
+
+
+def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path, capsys):
+    checkpoint(tmp_path, "tax3d-cd-x", data__task="hangproccloth-unimodal", data__train=("data/unimodal/train256",))
+    splits = {"unseen": {"episodes": 40, "success_rate": 0.875, "rmse": 0.61, "coverage_rmse": 0.3},
+              "ood": {"episodes": 40, "success_rate": 0.5, "rmse": 0.9, "coverage_rmse": None}}
+    root = repository(tmp_path, [{"checkpoint": "checkpoints/tax3d-cd-x", "eval": "evals/x.json",
+                                  "log": "training/x-log.json", "data": "DATA", "train": "TRAIN"}],
+                      {"evals/x.json": evaluation("hangproccloth-unimodal", splits), "training/x-log.json": LOG})
+    card = built(root, "tax3d-cd-x")
     assert card.startswith("# TAX3D-CD for hangproccloth-unimodal")
     # beside the paper's TAX3D-CD on unimodal (appendix D.2): success 0.90 / 0.85, RMSE 0.405 / 0.395
     assert "| unseen | 40 | 0.88 | 0.90 | 0.610 | 0.405 | 0.300 |" in card
@@ -45,88 +72,87 @@ def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path):
     assert "best validation RMSE: 0.600 at step 3" in card and "DATA\nTRAIN" in card
     assert "- training demonstrations: `data/unimodal/train256` (made by the first command below)" in card
     assert "grasped vertices" not in card  # the uniform weight goes unmentioned
+    assert main(["results", "--root", str(root), "--check"]) == 0
+
+    # a card edited by hand, or one whose evaluation changed, differs from what the pages build
+    readme = tmp_path / "checkpoints" / "tax3d-cd-x" / "README.md"
+    readme.write_text(card.replace("0.88", "0.90"))
+    capsys.readouterr()
+    assert main(["results", "--root", str(root), "--check"]) == 1
+    assert "tax3d-cd-x/README.md differs" in capsys.readouterr().err
+    readme.write_text(card)
+    splits["ood"]["success_rate"] = 0.625
+    (root / "evals" / "x.json").write_text(json.dumps(evaluation("hangproccloth-unimodal", splits)))
+    assert main(["results", "model-cards", "--root", str(root), "--check"]) == 1
+    assert "tax3d-cd-x/README.md differs" in capsys.readouterr().err
 
 
 def test_model_card_of_a_run_s_last_weights_names_them_beside_the_lowest_validation(tmp_path):
-    checkpoint = tmp_path / "tax3d-cd-x"
-    model = tiny_model()
-    model.config.data.task, model.config.data.grip_weight = "hangproccloth-multimodal", 16.0
-    model.save_pretrained(checkpoint)
-    log = tmp_path / "log.json"
-    log.write_text(json.dumps({"records": [{"step": 2, "loss": 0.5, "seconds": 120.0, "val_rmse": 0.8},
-                                           {"step": 3, "loss": 0.4, "seconds": 1800.0, "val_rmse": 0.9}]}))
-    evaluation = tmp_path / "eval.json"
-    evaluation.write_text(json.dumps({"summary": {
-        "checkpoint": "runs/x/last", "task": "hangproccloth-multimodal", "date": "2026-01-01", "machine": "m",
-        "command": "tax3d eval ...", "splits": {"unseen": {"episodes": 40, "success_rate": 0.5, "rmse": 1.0}}}}))
-    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "model_card.py"), str(checkpoint), "--log", str(log),
-                           "--eval", str(evaluation), "--data-command", "DATA", "--train-command", "TRAIN"],
-                          capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    card = (checkpoint / "README.md").read_text()
+    checkpoint(tmp_path, "tax3d-cd-x", data__task="hangproccloth-multimodal", data__grip_weight=16.0)
+    log = kept.stamp("train-log", {"source": "log", "records": [{"step": 2, "loss": 0.5, "seconds": 120.0,
+                                                                  "val_rmse": 0.8},
+                                                                 {"step": 3, "loss": 0.4, "seconds": 1800.0,
+                                                                  "val_rmse": 0.9}]})
+    root = repository(tmp_path, [{"checkpoint": "checkpoints/tax3d-cd-x", "eval": "evals/x.json",
+                                  "log": "training/x-log.json", "data": "DATA", "train": "TRAIN"}],
+                      {"evals/x.json": evaluation("hangproccloth-multimodal", {"unseen": {
+                          "episodes": 40, "success_rate": 0.5, "rmse": 1.0}}, checkpoint="runs/x/last"),
+                       "training/x-log.json": log})
+    card = built(root, "tax3d-cd-x")
     assert "- last validation RMSE: 0.900 at step 3 (these weights, the run's last); lowest: 0.800 at step 2" in card
     assert "best validation RMSE" not in card
     assert "; the grasped vertices weigh 16 in the loss" in card
 
 
 def test_model_card_of_a_run_whose_log_was_not_kept_says_so(tmp_path):
-    checkpoint = tmp_path / "tax3d-cp-x"
-    model = tiny_model()
-    model.config.data.task, model.config.model.variant = "hangbag", "cp"
-    model.config.train.steps, model.config.train.time_limit, model.config.train.threads = 4000, 45.0, 1
-    model.save_pretrained(checkpoint)
-    evaluation = tmp_path / "eval.json"
-    evaluation.write_text(json.dumps({"summary": {"task": "hangbag", "date": "2026-01-01", "machine": "m",
-                                                  "command": "tax3d eval ...", "splits": {
-                                                      "ood": {"episodes": 40, "success_rate": 0.8, "rmse": 0.5}}}}))
-    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "model_card.py"), str(checkpoint),
-                           "--eval", str(evaluation), "--data-command", "DATA", "--train-command", "TRAIN"],
-                          capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    card = (checkpoint / "README.md").read_text()
+    checkpoint(tmp_path, "tax3d-cp-x", data__task="hangbag", model__variant="cp", train__steps=4000,
+               train__time_limit=45.0, train__threads=1)
+    root = repository(tmp_path, [{"checkpoint": "checkpoints/tax3d-cp-x", "eval": "evals/x.json", "data": "DATA",
+                                  "train": "TRAIN"}],
+                      {"evals/x.json": evaluation("hangbag", {"ood": {"episodes": 40, "success_rate": 0.8,
+                                                                      "rmse": 0.5}})})
+    card = built(root, "tax3d-cp-x")
     assert card.startswith("# TAX3D-CP for hangbag") and "| ood | 40 | 0.80 | 0.78 | 0.500 | 0.233 | - |" in card
     assert "- steps: a 4,000-step schedule, cut by a 45-minute limit on one core; the run's log was not kept" in card
     assert "wall time" not in card and "best validation" not in card
 
 
 def test_model_card_of_a_checkpoint_trained_on_the_authors_data(tmp_path):
-    checkpoint = tmp_path / "tax3d-cd-official"
-    model = tiny_model()
-    model.config.data.task, model.config.data.rotate = "hangproccloth-simple", True
-    model.save_pretrained(checkpoint)
-    evaluation, report = tmp_path / "eval.json", tmp_path / "official.json"
-    evaluation.write_text(json.dumps({"summary": {"task": "hangproccloth-simple", "date": "2026-01-01", "machine": "m",
-                                                  "command": "tax3d eval ...", "splits": {
-                                                      "unseen": {"episodes": 40, "success_rate": 1.0, "rmse": 0.4}}}}))
-    report.write_text(json.dumps({"command": "python scripts/official_report.py", "date": "2026-01-02",
-                                  "machine": "n", "demos": 40, "samples": 5, "mean_goal_baseline_rmse": 1.1,
-                                  "samplers": {"ddpm_100": {"rmse": 0.21, "rmse_min_of_samples": 0.19}}}))
-    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "model_card.py"), str(checkpoint), "--eval",
-                           str(evaluation), "--official", str(report), "--data-command", "D", "--train-command", "T"],
-                          capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    card = (checkpoint / "README.md").read_text()
+    checkpoint(tmp_path, "tax3d-cd-official", data__task="hangproccloth-simple", data__rotate=True)
+    report = kept.stamp("official-val", {"command": "python benchmarks/official_report.py", "date": "2026-01-02",
+                                         "machine": "n", "demos": 40, "samples": 5, "mean_goal_baseline_rmse": 1.1,
+                                         "samplers": {"ddpm_100": {"rmse": 0.21, "rmse_min_of_samples": 0.19}}})
+    root = repository(tmp_path, [{"checkpoint": "checkpoints/tax3d-cd-official", "eval": "evals/x.json",
+                                  "official": "official_val.json", "data": "D", "train": "T"}],
+                      {"evals/x.json": evaluation("hangproccloth-simple", {"unseen": {
+                          "episodes": 40, "success_rate": 1.0, "rmse": 0.4}}), "official_val.json": report})
+    card = built(root, "tax3d-cd-official")
     assert "trained on the authors' demonstrations" in card and "own demonstrations" not in card
     # beside the paper's TAX3D-CD on simple, unseen (appendix D.1): RMSE 0.255
-    assert "| this checkpoint, 100-step DDPM | 0.210 | 0.190 |" in card and "| the paper (`unseen`) | 0.255 | - |" in card
+    assert "| this checkpoint, 100-step DDPM | 0.210 | 0.190 |" in card
+    assert "| the paper (`unseen`) | 0.255 | - |" in card
     assert "| mean goal of `train` (the floor) | 1.100 | - |" in card
+    assert "Command: `python benchmarks/official_report.py`" in card
     assert "rotation augmentation" in card and "without rotation" not in card
 
 
-@pytest.mark.parametrize("broken,says", [("eval", "a kept `tax3d eval` summary"),
-                                         ("official", "scripts/official_report.py's JSON"),
-                                         ("checkpoint", "config.json has a 'data' section")])
-def test_model_card_bad_input_is_one_line_naming_the_file(tmp_path, broken, says):
-    checkpoint = tmp_path / "ckpt"
-    tiny_model().save_pretrained(checkpoint)
-    files = {"eval": tmp_path / "eval.json", "official": tmp_path / "official.json"}
-    files["eval"].write_text(json.dumps({"summary": {}}))
-    files["official"].write_text(json.dumps({"samplers": {}}))
-    target = checkpoint / "config.json" if broken == "checkpoint" else files[broken]
+@pytest.mark.parametrize("broken, says", [("eval", "expected a kept JSON of kind 'eval'"),
+                                          ("official", "expected a kept JSON of kind 'official-val'"),
+                                          ("checkpoint", "expected a `tax3d train` config.json")])
+def test_model_card_bad_input_is_one_line_naming_the_file(tmp_path, capsys, broken, says):
+    checkpoint(tmp_path, "ckpt")
+    root = repository(tmp_path, [{"checkpoint": "checkpoints/ckpt", "eval": "evals/x.json",
+                                  "official": "official_val.json", "data": "D", "train": "T"}],
+                      {"evals/x.json": evaluation("hangproccloth-simple", {}),
+                       "official_val.json": kept.stamp("official-val", {"samplers": {}})})
+    target = {"eval": root / "evals" / "x.json", "official": root / "official_val.json",
+              "checkpoint": tmp_path / "checkpoints" / "ckpt" / "config.json"}[broken]
     target.write_text("{not json")
-    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "model_card.py"), str(checkpoint), "--eval",
-                           str(files["eval"]), "--official", str(files["official"]), "--data-command", "D",
-                           "--train-command", "T"], capture_output=True, text=True)
-    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
-    assert done.stderr.startswith(f"error: {target}: not readable") and says in done.stderr
-    assert not (checkpoint / "README.md").exists()
+    one_line_error(capsys, ["results", "--root", root], str(target), "not valid JSON", says)
+    assert not (tmp_path / "checkpoints" / "ckpt" / "README.md").exists()
+
+
+def test_every_shipped_checkpoint_has_its_card_declared():
+    declared = (ROOT / "docs" / "results" / "pages" / "model-cards.toml").read_text()
+    for folder in sorted((ROOT / "checkpoints").iterdir()):
+        assert f'checkpoint = "checkpoints/{folder.name}"' in declared, folder.name

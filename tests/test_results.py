@@ -1,5 +1,5 @@
-"""`tax3d results`: pages built from declarations and kept summaries (the task pages and the measurement pages),
---check, bad input, the paper's data file."""
+"""`tax3d results`: pages built from declarations and kept JSON (the task pages and the measurement pages), --check
+(plots by what they are drawn from), bad input (a kept JSON of another kind or version), the paper's data file."""
 
 from __future__ import annotations
 
@@ -11,8 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from tax3d import results
+from tax3d import kept, results
 from tax3d.cli import main
+from tax3d.pages import plots
+from tax3d.pages.page import PLACEHOLDER, SPLITS
 from tests.conftest import one_line_error
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -52,9 +54,10 @@ summary = "evals/cd-curve.json"
 def eval_summary(success: float, rmse: float) -> dict:
     split = {"episodes": 20, "success_rate": success, "rmse": rmse, "coverage_rmse": rmse / 2,
              "precision_rmse": rmse, "predict_seconds": 0.5, "sim_seconds": 4.0, "failed_runs": 0}
-    return {"summary": {"checkpoint": "runs/cd/best", "task": "hangproccloth-unimodal", "command": "tax3d eval ...",
-                        "machine": "test machine", "date": "2026-01-01", "policy_offset": [0.0, 0.0, 0.0],
-                        "splits": {k: dict(split) for k in results.SPLITS}}}
+    return kept.stamp("eval", {"summary": {
+        "checkpoint": "runs/cd/best", "task": "hangproccloth-unimodal", "command": "tax3d eval ...",
+        "machine": "test machine", "date": "2026-01-01", "policy_offset": [0.0, 0.0, 0.0],
+        "splits": {k: dict(split) for k in SPLITS}}})
 
 
 @pytest.fixture
@@ -65,12 +68,14 @@ def root(tmp_path: Path) -> Path:
     shutil.copy(RESULTS / "paper.toml", tmp_path / "paper.toml")
     (tmp_path / "pages" / "fixture.toml").write_text(PAGE)
     (tmp_path / "evals" / "cd.json").write_text(json.dumps(eval_summary(0.75, 0.8125)))
-    floor = {"command": "python scripts/oracle_policy.py --goal mean", "goal": "mean", "offset": [0.0, 0.0, 0.0],
-             "machine": "test machine", "date": "2026-01-02",
-             "splits": {k: {"episodes": 20, "success_rate": 0.25, "rmse": 1.5} for k in results.SPLITS}}
+    floor = kept.stamp("fixed-goal", {
+        "command": "python scripts/oracle_policy.py --goal mean", "goal": "mean", "offset": [0.0, 0.0, 0.0],
+        "machine": "test machine", "date": "2026-01-02",
+        "splits": {k: {"episodes": 20, "success_rate": 0.25, "rmse": 1.5} for k in SPLITS}})
     (tmp_path / "evals" / "floor.json").write_text(json.dumps(floor))
-    curve = {"run": "runs/cd", "val": ["data/u/unseen"], "val_demos": 10, "val_samples": 2, "steps": 2000,
-             "points": [{"step": 1000, "val_rmse": 2.5}, {"step": 2000, "val_rmse": 1.25}]}
+    curve = kept.stamp("val-curve", {"run": "runs/cd", "val": ["data/u/unseen"], "val_demos": 10, "val_samples": 2,
+                                     "steps": 2000, "points": [{"step": 1000, "val_rmse": 2.5},
+                                                               {"step": 2000, "val_rmse": 1.25}]})
     (tmp_path / "evals" / "cd-curve.json").write_text(json.dumps(curve))
     return tmp_path
 
@@ -92,6 +97,44 @@ def test_page_from_fixture_summaries(root, capsys):
 def test_plot_is_the_same_on_every_run(root):
     first = results.build(root)
     assert first == results.build(root)
+
+
+def test_check_compares_a_plot_by_what_it_is_drawn_from(root, capsys):
+    """Another matplotlib draws other pixels from the same data: --check passes; other data: it names the plot."""
+    assert main(["results", "--root", str(root)]) == 0
+    png = root / "fixture.png"
+    source = plots.drawn_from(png.read_bytes())
+    assert source["plot"] == "success-bars" and source["success"][0] == [0.75, 0.75, 0.75]
+    fig = plots._figure(2.0, 2.0)
+    png.write_bytes(plots._png(fig, source))  # other pixels, the same data
+    assert main(["results", "--root", str(root), "--check"]) == 0
+    png.write_bytes(plots._png(fig, {**source, "success": [[0.5, 0.75, 0.75], *source["success"][1:]]}))
+    capsys.readouterr()
+    assert main(["results", "--root", str(root), "--check"]) == 1
+    assert "fixture.png differs" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("change, says", [
+    ({"kind": "summary"}, "kind 'summary'; expected a kept JSON of kind 'eval' or 'fixed-goal'"),
+    ({"version": 9}, "'eval' of version 9; expected version 1, as `tax3d eval` (OUT/summary.json) writes it"),
+    ({"kind": None}, "kind None; expected a kept JSON of kind 'eval' or 'fixed-goal'")])
+def test_kept_json_of_another_kind_or_version_is_a_one_line_error(root, capsys, change, says):
+    path = root / "evals" / "cd.json"
+    data = {**json.loads(path.read_text()), **change}
+    path.write_text(json.dumps({k: v for k, v in data.items() if v is not None}))
+    one_line_error(capsys, ["results", "--root", root], str(path), says)
+
+
+def test_a_long_note_or_verdict_is_a_one_line_error(root, capsys):
+    page = root / "pages" / "fixture.toml"
+    text = page.read_text()
+    page.write_text(text.replace('text = "The floor hangs', 'text = "' + "word " * 60 + 'The floor hangs'))
+    one_line_error(capsys, ["results", "--root", root], "note 'Reading the table'", "expected at most 50")
+    page.write_text(text.replace("against the paper's {paper.CD.success.unseen}.",
+                                 "against the paper's {paper.CD.success.unseen}. One. Two."))
+    one_line_error(capsys, ["results", "--root", root], "verdict: 3 sentences; expected at most 2")
+    page.write_text(text.replace('definitions = "RMSE and success as defined."', ""))
+    one_line_error(capsys, ["results", "--root", root], "fixture.toml: no definitions")
 
 
 def test_check_names_a_page_whose_summary_changed(root, capsys):
@@ -144,8 +187,8 @@ def test_paper_data_file_against_the_paper_text():
 
 
 def _prose(text: str) -> list[str]:
-    """The paragraphs outside <details>, tables, headings and images."""
-    text = re.sub(r"<details>.*?</details>", "", text, flags=re.S)
+    """The paragraphs outside <details>, tables, headings, images and comments."""
+    text = re.sub(r"<details>.*?</details>|<!--.*?-->\n?", "", text, flags=re.S)
     return [p for p in text.split("\n\n") if p.strip() and not p.lstrip().startswith(("|", "#", "!["))]
 
 
@@ -155,7 +198,7 @@ def test_no_paragraph_over_120_words_outside_details():
     for path, data in built.items():
         if path.suffix == ".md" and path.name != "README.md":
             text = data.decode()
-            if "<!-- study -->" in text:  # docs/training.md: the section that `tax3d results` builds
+            if "<!-- study -->" in text:  # docs/results/training.md: the section `tax3d results` builds
                 text = text.split("<!-- study -->", 1)[1].split("<!-- /study -->", 1)[0]
             for paragraph in _prose(text):
                 assert len(paragraph.split()) <= 120, f"{path.name}: {paragraph[:80]}..."
@@ -165,15 +208,35 @@ def test_notes_have_no_hand_typed_numbers():
     """A number in a verdict or note comes from a kept summary through a placeholder."""
     for file in sorted((RESULTS / "pages").glob("*.toml")):
         spec = tomllib.loads(file.read_text())
-        texts = [spec["verdict"], spec.get("sets_note", ""), spec.get("spread_note", "")]
-        texts += [n["text"] for n in spec.get("note", []) + spec.get("ablation_note", [])]
+        texts = [spec.get("verdict", ""), spec.get("sets_note", ""), spec.get("spread_note", "")]
+        texts += [n["text"] for n in spec.get("note", []) + spec.get("detail", [])]
+        texts += [d["what"] for d in spec.get("difference", [])]
         for text in texts:
-            bare = re.sub(r"`[^`]*`|\]\([^)]*\)|\b(TAX3D|DP3)\b", "", results.PLACEHOLDER.sub("", text))
+            bare = re.sub(r"`[^`]*`|\]\([^)]*\)|\b(TAX3D|DP3)\b", "", PLACEHOLDER.sub("", text))
             assert not re.search(r"\d", bare), f"{file.name}: a hand-typed number in {bare[:200]!r}"
 
 
 def test_committed_pages_are_what_tax3d_results_builds(capsys):
     assert main(["results", "--check"]) == 0, capsys.readouterr().err
+
+
+def test_each_task_page_opens_with_its_verdict_then_the_table():
+    for file in sorted((RESULTS / "pages").glob("*.toml")):
+        if "kind" in tomllib.loads(file.read_text()):
+            continue
+        lines = (RESULTS / f"{file.stem}.md").read_text().split("\n")
+        assert lines[0].startswith("# ") and lines[1] == "" and lines[3] == "", file.stem
+        assert lines[4].startswith(("| |", "## The paper's table")), file.stem
+
+
+def test_every_kept_json_declares_a_kind_that_loads():
+    """Each kept file under docs/results/ but a run's config.json names its kind and a version that is read."""
+    for path in sorted(RESULTS.rglob("*.json")):
+        data = json.loads(path.read_text())
+        if all(key in data for key in kept.CONFIG_SECTIONS):
+            kept.config(path)
+        else:
+            kept.load(path)
 
 
 # -- the measurement pages: the simulation page, the official-data page, the training study -------------------------
@@ -329,7 +392,8 @@ def measurement_json() -> dict[str, dict]:
                                    "resumed_with": "--train.steps 800 --train.time-limit 50",
                                    "first_plan_steps": 900, "stopped_at_step": 300, "training_minutes": 45,
                                    "best_step": 600, "machine": "fixture machine"},
-        "training/ttq-1.json": study({"a": [(14, 2.0), (29, 1.5), (61, 0.9)], "b": [(20, 1.2), (65, 0.7)]}),
+        "training/ttq-1.json": study({"a": [(14, 2.0), (29, 1.5), (61, 0.9)], "b": [(20, 1.2), (65, 0.7)],
+                                      "shipped": [(30, 1.2), (62, 0.6)]}),
         "training/ttq-5.json": {**study({"v-loss-30min": [(8, 1.9), (15, 1.6), (22, 1.5), (30, 1.25)]}),
                                 "minutes": 30.0},
         "training/ttq-6.json": {**study({name: [(m * k, 1.5 - m / 10) for m in range(1, 7)]
@@ -377,7 +441,11 @@ def measurement_json() -> dict[str, dict]:
                                  "minutes": 120.0},
         "evals/unimodal-cd-cpu-v-grip16-all512-120min.json": finalist_policy(),
         "evals/unimodal-cd-cpu-vcap-grip16-all512-120min.json": finalist_policy(),
-        "evals/unimodal-demo-goal-40ep.json": policy(0.9, 0.9)["summary"],
+        "evals/unimodal-demo-goal-40ep.json": policy(0.9, 0.9),
+        "evals/unimodal-cd-cpu-95min-v.json": policy(0.65, 0.65),
+        "evals/unimodal-cd-cpu-v-rotate-95min.json": policy(0.6, 0.55),
+        "training/ttq-2.json": {**study({"eps-subsets-ema": [(15, 1.1), (60, 0.55)]}), "minutes": 60.0},
+        "training/ttq-4.json": {**study({"v-loss": [(15, 0.65), (60, 0.5)]}), "minutes": 60.0},
         "training/ttq-23.json": hour_pair(("v-grip16-scale04-60min", 15, 4), ("v-grip16-60min", 12, 5),
                                           {"target_scale": 0.4}),
         "training/hangbag-ttq-24.json": hour_pair(("v-grip16-60min", 7, 8), ("eps-60min", 6.5, 9),
@@ -400,9 +468,20 @@ def measurement_json() -> dict[str, dict]:
                                         "fpsample": {"speedup_per_sample_over_numpy": 2.0,
                                                      "real_clouds": {"clouds": 8, "same_indices": 3}},
                                         "numpy_real_clouds": {"clouds": 8, "same_indices": 8}},
-        "../../checkpoints/tax3d-cd-official-simple/config.json": {"train": {
+        "../../checkpoints/tax3d-cd-official-simple/config.json": {"model": {}, "diffusion": {}, "data": {}, "train": {
             "steps": 800, "time_limit": 50.0, "val_demos": 4, "val_samples": 2, "val_every": 100}},
     }
+
+
+KINDS = {"fidelity.json": "fidelity", "expert_rates": "expert-rates", "sim_benchmark": "sim-benchmark",
+         "official_val.json": "official-val", "official_training.json": "train-run",
+         "model_benchmark": "model-benchmark", "large_clouds": "model-benchmark", "precision_benchmark": "model-benchmark", "fps_benchmark": "fps-benchmark",
+         "ttq-": "study", "evals/": "eval", "unimodal-floor-20": "predict", "-samplers-": "predict"}
+
+
+def kind_of(rel: str) -> str | None:
+    """The kind of a fixture's kept JSON by its path (a run's config.json has none)."""
+    return None if rel.endswith("config.json") else next(k for part, k in reversed(KINDS.items()) if part in rel)
 
 
 @pytest.fixture
@@ -415,8 +494,10 @@ def measured(tmp_path: Path) -> Path:
         shutil.copy(RESULTS / "pages" / f"{name}.toml", root / "pages" / f"{name}.toml")
     for rel, data in measurement_json().items():
         (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        (root / rel).write_text(json.dumps(data))
-    (root.parent / "training.md").write_text("# T\n\nbefore\n<!-- study -->\nold\n<!-- /study -->\nafter\n")
+        kind = kind_of(rel)
+        (root / rel).write_text(json.dumps(data if kind is None else kept.stamp(kind, data)))
+    (root / "training.md").write_text("# T\n\nbefore\n<!-- study -->\nold\n<!-- /study -->\nafter\n")
+    (root.parent / "training.md").write_text("# G\n<!-- differences -->\nold\n<!-- /differences -->\nend\n")
     return root
 
 
@@ -428,7 +509,8 @@ def test_measurement_pages_from_fixture_json(measured):
     assert "| goal RMSE against the official goal (mean / median / max) | 0.250 / 0.200 / 0.750 |" in sim
     assert "| demos with goal RMSE under 0.5 | 1 | 1 |" in sim
     assert "| hangproccloth-simple | `unseen` | 4 | 0.75 | 1 |" in sim and "| hangbag | 640 | 8.50 | - |" in sim
-    assert "`python scripts/fidelity.py` on fixture machine, 2026-02-03" in sim
+    assert ("`python scripts/fidelity.py` (recorded with an earlier version; today: `python benchmarks/fidelity.py`) "
+            "on fixture machine, 2026-02-03") in sim
     official = (measured / "official-simple.md").read_text()
     assert "TAX3D-CD predicts goals 0.125 RMSE from the official `val` goals, against the paper's 0.255" in official
     assert "| TAX3D-CD, this checkpoint, 10-step DDIM | 0.375 | 0.188 |" in official
@@ -437,16 +519,20 @@ def test_measurement_pages_from_fixture_json(measured):
     assert "| speed-up, 10-step DDPM over 100-step | **10.0x** |" in official
     assert "| prediction of 20,000 action points, network on 256, 10-step DDPM | 0.25 s |" in official
     assert "| 0.250 / 0.200 (ratio **1.250**) |" in official and "on the 8 `val` cloths" in official
-    training = (measured.parent / "training.md").read_text()
-    assert training.startswith("# T\n\nbefore\n<!-- study -->\n**Best at the end of its run: ttq-1: b, validation "
-                               "RMSE 0.700 after 65 minutes** (mean-goal floor 1.750;")
+    training = (measured / "training.md").read_text()
+    # the verdict names the shipped recipe, not the lowest RMSE of the study
+    assert training.startswith("# T\n\nbefore\n<!-- study -->\n**The shipped recipe, `--opt v-grip16-all512-110min` "
+                               "on today's `cpu` preset with all `512` unimodal training demos "
+                               "(`checkpoints/tax3d-cd-unimodal`), ends its 110-minute plan at validation RMSE 0.700** "
+                               "(mean-goal floor 1.750;")
+    assert "and hangs 0.88 / 0.85 of `unseen` / `ood` cloths (the paper's: 0.90 / 0.85)." in training
     assert training.endswith("<!-- /study -->\nafter\n") and "old" not in training
     row_a = next(line for line in training.splitlines() if line.startswith("| ttq-1 | a |"))
     # 15 min: the validation at 14; 30: at 29; 60: at 61 (within 10%); 120: the last, at 61; whole-run and
     # first-steps rates
     assert "| 2.000 (14 min) | 1.500 (29 min) | 0.900 (61 min) | 0.900 (61 min) | 0.900 (61 min) | 100 | 120 |" in row_a
-    assert "![validation RMSE against minutes](results/training/time_to_quality.png)" in training
-    assert "[training/ttq-1.json](results/training/ttq-1.json), [training/ttq-5.json](results/training/ttq-5.json)" \
+    assert "![validation RMSE against minutes](training/time_to_quality.png)" in training
+    assert "[training/ttq-1.json](training/ttq-1.json), [training/ttq-2.json](training/ttq-2.json)" \
         in training and training.count("on fixture machine, 2026-02-03") == 1  # one mention for one machine and day
     # the multimodal study stays out of the unimodal table (its JSON is not a ttq-*.json) but feeds its note
     assert "| ttq-11" not in training and "multimodal-ttq-11" not in training.split("**Half an hour")[0]
@@ -464,6 +550,11 @@ def test_measurement_pages_from_fixture_json(measured):
     assert "runs at 0.50x the speed of the `float32` step (the paper's larger network: 1.50x)" in training
     assert "points on only 3 of 8 real cloth and bag clouds (the numpy loop: 8)" in training
     assert (measured / "training" / "time_to_quality.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    guide = (measured.parent / "training.md").read_text()
+    assert guide.startswith("# G\n<!-- differences -->\n| `cpu` instead of `paper` |") and "old" not in guide
+    assert ("| the `v` weighting of the loss (`paper`: the epsilon MSE) | 0.500 (60 min) / 0.550 (60 min) | - | "
+            "ttq-4: v-loss; ttq-2: eps-subsets-ema |") in guide
+    assert "| 0.65 / 0.65 against 0.60 / 0.55 | ttq-6: v-95min; ttq-7: v-rotate-95min |" in guide
     assert main(["results", "--root", str(measured), "--check"]) == 0
     assert results.build(measured) == results.build(measured)  # the plot too
 
@@ -493,9 +584,9 @@ def test_missing_measurement_json_is_a_one_line_error(measured, capsys, rel):
     (measured / rel).unlink()
     err = one_line_error(capsys, ["results", "--root", measured])
     assert rel.rsplit("/", 1)[-1].replace("ttq-1.json", "ttq-*.json") in err, err
-    assert not (measured / "official-simple.md").exists() and "old" in (measured.parent / "training.md").read_text()
+    assert not (measured / "official-simple.md").exists() and "old" in (measured / "training.md").read_text()
 
 
 def test_training_page_without_its_markers_is_a_one_line_error(measured, capsys):
-    (measured.parent / "training.md").write_text("# T\n")
+    (measured / "training.md").write_text("# T\n")
     one_line_error(capsys, ["results", "training", "--root", measured], "training.md: no <!-- study -->")

@@ -106,6 +106,12 @@ def test_outputs_and_config(tmp_path, demos):
                                                                 train.STATE_NAME]
     state = torch.load(out / "last" / train.STATE_NAME, weights_only=True)
     assert state["step"] == 6
+    # the kept JSON: every validation and the last step, readable as a validation curve
+    from tax3d import kept
+
+    summary = kept.load(out / "summary.json", ("train-log",))
+    assert [p["step"] for p in summary["points"]] == [3, 6] and summary["records"][-1]["step"] == 6
+    assert summary["variant"] == "cp_w" and summary["val"] == [str(demos)] and summary["last_step"] == 6
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary folders left
 
 

@@ -1,4 +1,5 @@
-"""Whether a kept `tax3d` command line still parses with today's options (a result page marks one that does not)."""
+"""Whether a kept command line still runs as written today: its `tax3d` options parse and the script it names is
+still there (a result page marks one that does not, with what to run today where there is something)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,19 @@ EARLIER = "recorded with an earlier version"
 
 
 SEPARATORS = ("&&", "||", ";", "|")
+# scripts that kept commands name, since moved, replaced or removed: what to run today (None: nothing)
+MOVED = {
+    "scripts/oracle_policy.py": "`tax3d eval --goal demo` or `--goal mean` with the same options",
+    "scripts/sampler_check.py": "`python benchmarks/samplers.py`, one checkpoint at a time",
+    "scripts/keep_summary.py": "`tax3d eval`, which writes OUT/summary.json",
+    "scripts/keep_log.py": "`tax3d train`, which writes OUT/summary.json",
+    "scripts/val_curve.py": "`tax3d train`, which writes OUT/summary.json",
+    "scripts/model_card.py": "`tax3d results`, from docs/results/pages/model-cards.toml",
+    "scripts/precision_parts.py": None,
+    **{f"scripts/{name}.py": f"`python benchmarks/{name}.py`" for name in (
+        "expert_rates", "fidelity", "goal_spread", "mode_spread", "official_report", "paper_budget_run",
+        "success_by_rmse")},
+}
 
 
 def tax3d_commands(command: str) -> list[tuple[str, list[str]]]:
@@ -66,6 +80,16 @@ def _parses(name: str, argv: list[str]) -> bool:
     return True
 
 
+def moved(command: str) -> str | None:
+    """The script a command line names that has since moved or gone, or None."""
+    return next((script for script in MOVED if script in command), None)
+
+
 def shown(command: str) -> str:
-    """A kept command as a page shows it: in backticks, marked where today's version no longer parses it."""
+    """A kept command as a page shows it: in backticks, marked where today's version no longer runs it as written,
+    with what to run today."""
+    script = moved(command)
+    if script is not None:
+        today = MOVED[script]
+        return f"`{command}` ({EARLIER}" + (f"; today: {today})" if today else "; the script has since been removed)")
     return f"`{command}`" + ("" if parses(command) else f" ({EARLIER})")

@@ -1,6 +1,8 @@
 """`tax3d eval`: a checkpoint predicts goals, the policy executes them in the simulator, the success check judges.
 
-The environment runner (this module) is separate from the policy it evaluates (`tax3d.policy`).
+The environment runner (this module) is separate from the policy it evaluates (`tax3d.policy`). OUT gets results.json
+(the summary and every episode), summary.json (the summary alone: kept JSON of kind "eval", tax3d.kept) and the
+report.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from tax3d import provenance
+from tax3d import kept, provenance
 from tax3d.atomic import write_text
 from tax3d.errors import UsageError
 from tax3d.options import Finite, NonNegative, OutputFolder, Positive
@@ -66,7 +68,7 @@ class Args:
     policy_offset: Annotated[tuple[float, float, float] | None, Finite] = None
     """added to the predicted grip-vertex positions to make the gripper targets (default: the task's)"""
     out: Annotated[Path, OutputFolder] = Path("out/eval")
-    """output folder: results.json, results.md, report.html, images/"""
+    """output folder: results.json, summary.json (kept JSON: the summary alone), report.html, images/"""
     report: bool = True
     """write the HTML report"""
 
@@ -406,6 +408,9 @@ def _write_outputs(args: Args, summary: dict, results: list[dict]) -> None:
                for r in results]
     path = args.out / "results.json"
     write_text(path, json.dumps({"summary": summary, "episodes": scalars}, indent=2, default=_plain))
+    # the kept JSON of the evaluation: its summary without the episodes
+    write_text(args.out / "summary.json", json.dumps(kept.stamp("eval", {"summary": summary}), indent=1,
+                                                     default=_plain) + "\n")
     if args.report:
         from tax3d.report import write_report
 

@@ -6,7 +6,8 @@ The npz holds `goals` (D, K, N, 3) world-frame predictions (where the demos' poi
 and demo i's rows from points[i] on are NaN), `points` (D,) the action points of each demo, `files` (D,) and
 `rmse` (D, K); it loads without allow_pickle. The printed RMSE is the mean over demos of the
 min over samples (docs/reference.md, Evaluation), the mean over all samples and that of each demo's medoid sample
-(the one nearest the others); `--summary FILE` keeps it as JSON with the command, machine and date.
+(the one nearest the others); `--summary FILE` keeps it as JSON with the command, machine and date (kind
+"predict", tax3d.kept).
 `benchmarks/samplers.py` scores the same demos and seed with each sampler.
 """
 
@@ -23,7 +24,7 @@ from typing import Annotated, Literal, Optional
 import numpy as np
 import torch
 
-from tax3d import provenance
+from tax3d import kept, provenance
 from tax3d.atomic import atomic_write, write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
@@ -101,12 +102,11 @@ def run(args: Args) -> int:
         write_npz(Path(args.out), goals, files, errors)
         print(f"predictions: {args.out}", file=sys.stderr)
     if args.summary:
-        kept = {"command": command_line(args),
-                "date": provenance.today(),
-                "machine": provenance.machine(),
-                "checkpoint": str(args.checkpoint), **summary}
+        record = kept.stamp("predict", {"command": command_line(args), "date": provenance.today(),
+                                        "machine": provenance.machine(), "checkpoint": str(args.checkpoint),
+                                        **summary})
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
-        write_text(args.summary, json.dumps(kept, indent=1) + "\n")
+        write_text(args.summary, json.dumps(record, indent=1) + "\n")
         print(f"summary: {args.summary}", file=sys.stderr)
     print(json.dumps(summary))
     return 0

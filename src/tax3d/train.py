@@ -4,7 +4,8 @@
 
 OUT gets config.json (the resolved configuration), log.jsonl (one line per logged step), last/ (config.json,
 model.safetensors and training_state.pt, rewritten atomically at every validation and on Ctrl-C) and best/ (the
-weights with the lowest validation min-of-samples RMSE). A run whose OUT already holds last/ continues from it; one
+weights with the lowest validation min-of-samples RMSE); at its end, summary.json (the plan, every validation and the
+last step: kept JSON of kind "train-log", tax3d.kept). A run whose OUT already holds last/ continues from it; one
 that starts afresh starts a fresh log.jsonl.
 
 Under torchrun (`torchrun --nproc_per_node N -m tax3d.cli train ...`, docs/scaling.md) each process takes its
@@ -35,7 +36,9 @@ from torch.utils.data import DataLoader, Dataset, Sampler
 from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
-from tax3d.checkpoint import STATE_NAME, find_last, read_weights, save_checkpoint, truncate_log
+from tax3d import kept
+from tax3d.atomic import write_json
+from tax3d.checkpoint import STATE_NAME, find_last, read_log, read_weights, save_checkpoint, truncate_log
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import data_task, grip_vertices, load_demo
 from tax3d.errors import UsageError
@@ -506,10 +509,24 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                   file=sys.stderr)
         raise KeyboardInterrupt
     if world.main:
+        write_summary(out, config)
         minutes = (time.time() - started) / 60
-        kept = f"best validation RMSE {best:.3f} in {out / 'best'}" if math.isfinite(best) else f"weights in {out / 'last'}"
-        print(f"trained {step} steps in {minutes:.1f} min; {kept}", file=sys.stderr)
+        saved = f"best validation RMSE {best:.3f} in {out / 'best'}" if math.isfinite(best) else f"weights in {out / 'last'}"
+        print(f"trained {step} steps in {minutes:.1f} min; {saved}", file=sys.stderr)
     return 0
+
+
+def write_summary(out: Path, config: cfg.Config) -> None:
+    """OUT/summary.json: the log's plan, every validation and the last step, and what the validations were on."""
+    records = read_log(out / "log.jsonl")
+    kept_records = [r for r in records if "plan" in r or "val_rmse" in r]
+    if records and (not kept_records or kept_records[-1] is not records[-1]):
+        kept_records.append(records[-1])
+    write_json(out / "summary.json", kept.stamp("train-log", {
+        "run": str(out), "variant": config.model.variant, "val": list(config.data.val),
+        "val_demos": config.train.val_demos, "val_samples": config.train.val_samples, "steps": config.train.steps,
+        "source": f"{out / 'log.jsonl'}: the plan, every validation and the last step", "records": kept_records}),
+        indent=1)
 
 
 def agree(world: distributed.World, device: torch.device):

@@ -1,7 +1,7 @@
 """Success of the policy against the RMSE of the goal it executed, from one `tax3d eval` run: how close a goal must be
 for the cloth to hang. Kept as a small JSON that a results page cites.
 
-    python scripts/success_by_rmse.py runs/eval-x docs/results/evals/NAME-success-by-rmse.json [--splits unseen,ood]
+    python benchmarks/success_by_rmse.py runs/eval-x docs/results/evals/NAME-success-by-rmse.json [--splits unseen,ood]
 
 Episodes are pooled over the splits and put in RMSE bins (--edges); each bin gives its episodes and success rate.
 The RMSE is the executed sample's (`executed_rmse`, recorded by `tax3d eval`), so runs made before it was recorded
@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from tax3d import provenance
+from tax3d import kept, provenance
 from tax3d.atomic import write_text
 
 
@@ -60,13 +60,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {source}: no episode of {', '.join(splits)} has an {args.by}; expected a run of "
               f"`tax3d eval` on demo folders", file=sys.stderr)
         return 2
-    kept = {"command": "python scripts/success_by_rmse.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+    record = {"command": "python benchmarks/success_by_rmse.py " + " ".join(argv if argv is not None else sys.argv[1:]),
             "source": summary.get("command"), "checkpoint": summary.get("checkpoint"), "pooled_splits": splits,
             "samples": summary.get("args", {}).get("samples"), "select": summary.get("args", {}).get("select"),
             "episodes": len(chosen), "success_rate": sum(e["success"] for e in chosen) / len(chosen),
             "by": args.by, "bins": bins(chosen, edges, args.by), "machine": summary.get("machine"),
             "date": provenance.today()}
-    write_text(args.out, json.dumps(kept, indent=1) + "\n")
+    write_text(args.out, json.dumps(kept.stamp("success-by-rmse", record), indent=1) + "\n")
     print(args.out)
     return 0
 

@@ -1,6 +1,6 @@
 """The official-data checkpoint on the official `val` split: RMSE beside the paper's and the mean-goal baseline.
 
-    python scripts/official_report.py [--checkpoint checkpoints/tax3d-cd-official-simple] [--samples 5]
+    python benchmarks/official_report.py [--checkpoint checkpoints/tax3d-cd-official-simple] [--samples 5]
 
 Measures on the authors' data (../shared beside the project) and writes docs/results/official_val.json; the page,
 docs/results/official-simple.md, is built from it (and from docs/results/model_benchmark.json) by
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from tax3d import provenance
+from tax3d import kept, provenance
 from tax3d.atomic import write_text
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,7 +73,8 @@ def main() -> None:
     if not (OFFICIAL / "val").is_dir():
         sys.exit(f"{OFFICIAL / 'val'}: official data not found; expected ../shared beside the project")
     val_json = RESULTS / "official_val.json"
-    write_text(val_json, json.dumps(measure(args.checkpoint.resolve(), args.samples, args.seed), indent=2) + "\n")
+    report = kept.stamp("official-val", measure(args.checkpoint.resolve(), args.samples, args.seed))
+    write_text(val_json, json.dumps(report, indent=2) + "\n")
     print(val_json)
     print("run `tax3d results official-simple` to rebuild docs/results/official-simple.md")
 

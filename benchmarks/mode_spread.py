@@ -1,6 +1,6 @@
 """How far apart the two goals of a multimodal cloth are, and what predicting their average would score; prints JSON.
 
-    python scripts/mode_spread.py --data data/multimodal [--out FILE]
+    python benchmarks/mode_spread.py --data data/multimodal [--out FILE]
 
 Per split, over the cloths with both demonstrations (one per hole, same anchor pose): the RMSE between the two goals
 (the separation of the modes), and the RMSE of their point-wise midpoint to either goal, which is then that
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from tax3d.atomic import write_json
-from tax3d import provenance
+from tax3d import kept, provenance
 from tax3d.data.format import cloth_groups
 from tax3d.metrics import rmse
 
@@ -38,7 +38,7 @@ def main() -> int:
             "cloths_with_both_goals": len(pairs),
             "goal_separation_rmse": float(np.mean([rmse(a, b) for a, b in pairs])) if pairs else None,
             "midpoint_rmse": float(np.mean([rmse((a + b) / 2, a) for a, b in pairs])) if pairs else None}
-    print(write_json(args.out, out))
+    print(write_json(args.out, kept.stamp("mode-spread", out)))
     return 0
 
 

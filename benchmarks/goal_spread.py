@@ -1,7 +1,7 @@
 """How much of a task's goal variation a fixed goal explains: offline RMSE of mean goals, and the hook's share of
 the anchor cloud after farthest point sampling; prints one JSON object.
 
-    python scripts/goal_spread.py --data data/hangbag [--points 256 512]
+    python benchmarks/goal_spread.py --data data/hangbag [--points 256 512]
 
 - mean goal: the mean over DATA/train of the goal in the anchor frame (translation to the anchor's mean, the CD/CP
   frame), placed at each demo's anchor (`tax3d.metrics.MeanGoalBaseline`);
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from tax3d import provenance
+from tax3d import kept, provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.geometry import farthest_point_sample
 from tax3d.metrics import MeanGoalBaseline, rmse
@@ -64,7 +64,7 @@ def main() -> int:
     for k in args.points:
         idx = farthest_point_sample(torch.as_tensor(demo["anchor_pc"]), k, start=0).numpy()
         out["anchor_points_off_the_pole"][f"fps_{k}"] = f"{int(mask[idx].sum())} of {k}"
-    print(json.dumps(out, indent=2))
+    print(json.dumps(kept.stamp("goal-spread", out), indent=2))
     return 0
 
 

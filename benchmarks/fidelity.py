@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tax3d import provenance
+from tax3d import kept, provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.sim.env import HangClothEnv
 from tax3d.sim.generate import Args, generate
@@ -92,7 +92,7 @@ def main() -> int:
         report[split] = reset_checks(folder)
         if args.episodes > 0:
             report[split].update(expert_checks(folder, args.episodes, args.workers))
-    print(json.dumps(report, indent=2))
+    print(json.dumps(kept.stamp("fidelity", report), indent=2))
     return 0
 
 

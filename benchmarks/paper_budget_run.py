@@ -1,6 +1,6 @@
 """Train the `paper` preset on one GPU for a fixed wall time, with the cosine schedule fitted to that time.
 
-    python scripts/paper_budget_run.py --train DIR --val DIR --task TASK --out runs/NAME --minutes 6 [--variant cd]
+    python benchmarks/paper_budget_run.py --train DIR --val DIR --task TASK --out runs/NAME --minutes 6 [--variant cd]
                                        [any option of `tax3d train`, e.g. --train.batch-size 32]
 
 The paper's 500,000 steps take hours even on one GPU. This script measures how fast this machine trains the
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import torch
 
-from tax3d import provenance
+from tax3d import kept, provenance
 from tax3d.atomic import write_text
 from tax3d.checkpoint import read_log
 
@@ -102,14 +102,14 @@ def main() -> int:
 
     rates = {probe_spec: probe(args, *probe_spec) for probe_spec in probes}
     rate, workers = max((r, w) for (precision, w), r in rates.items() if precision == "fp32")
-    summary = {
+    summary = kept.stamp("paper-budget", {
         "machine": provenance.machine(f"torch {torch.__version__}",
                                       torch.cuda.get_device_name(0) if args.device == "cuda" else "no GPU"),
         "date": provenance.today(),
-        "command": " ".join(["python", "scripts/paper_budget_run.py", *sys.argv[1:]]),
+        "command": " ".join(["python", "benchmarks/paper_budget_run.py", *sys.argv[1:]]),
         "probe_steps_per_second": {probe_name(*k): round(v, 2) for k, v in rates.items()},
         "paper_budget_hours_at_this_rate": round(500_000 / rate / 3600, 2),
-    }
+    })
     if args.minutes <= 0:
         print(json.dumps(summary, indent=1))
         return 0

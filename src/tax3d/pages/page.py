@@ -1,0 +1,130 @@
+"""What every page declaration shares: its kept sources, `{id.key}` placeholders, the verdict, short notes and the
+one folded section of longer ones.
+
+A declaration holds `title`, `verdict` (at most two sentences), arrays of tables `source` (id, label, summary: a kept
+JSON; optional `config`, a kept `tax3d train` config.json read as `{id.config...}`), `note` (title, text of at most
+NOTE_WORDS words, optional `section`) and `detail` (title, text: the longer explanations, all in one folded section).
+`{id.split.metric}` reads a split of a kept evaluation (`success` for success_rate), `{id.key.key}` any key of a kept
+JSON, `{paper.ROW.metric.split}` the paper's table of the page's `task`; `{...:.3f}` formats.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from tax3d import kept
+from tax3d.commands import shown
+from tax3d.errors import UsageError
+
+SPLITS = ("train", "unseen", "ood")
+ALIASES = {"success": "success_rate"}
+PLACEHOLDER = re.compile(r"\{([A-Za-z][\w-]*(?:\.[\w-]+)+)(?::([^{}]+))?\}")
+NOTE_WORDS = 50
+VERDICT_SENTENCES = 2
+SENTENCE_END = re.compile(r"[.!?](?=\s+[A-Z`*(\[]|\s*$)")
+
+
+def fold(summary: str, lines: list[str]) -> list[str]:
+    return [f"<details><summary>{summary}</summary>", "", *lines, "", "</details>", ""]
+
+
+def provenance(d: dict) -> str:
+    return f"{shown(d['command'])} on {d['machine']}, {d['date']}"
+
+
+def cell(value, fmt: str) -> str:
+    return "-" if value is None else fmt.format(value)
+
+
+def _fmt(value) -> str:
+    if isinstance(value, list):
+        return "(" + ", ".join(f"{v:g}" for v in value) + ")"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return str(value)
+    if isinstance(value, int):
+        return f"{value:,}"
+    return f"{value:.2f}"
+
+
+class Page:
+    """One page's declaration with its kept sources loaded; a subclass renders it (`files`)."""
+
+    row_kinds: tuple[str, ...] = ("eval", "fixed-goal")
+    required: tuple[str, ...] = ("title", "verdict")
+
+    def __init__(self, file: Path, root: Path, paper: dict, spec: dict):
+        missing = [key for key in self.required if key not in spec]
+        if missing:
+            raise UsageError(f"{file.name}: no {', '.join(missing)}; expected a declaration with "
+                             f"{', '.join(self.required)} ({type(self).__module__})")
+        self.file, self.root, self.name, self.spec = file, root, file.stem, spec
+        self.paper_all, self.paper = paper, paper.get(spec.get("task", ""), {"rows": {}})
+        self.rows, self.curves = spec.get("row", []), spec.get("curve", [])
+        self.data = {}
+        curve_kinds = ("val-curve", "train-log")
+        for what, items, kinds in (("row", self.rows, self.row_kinds), ("curve", self.curves, curve_kinds),
+                                   ("source", spec.get("source", []), ())):
+            for item in items:
+                self.data[item["id"]] = self._load(what, item, kinds)
+        for note in spec.get("note", []):
+            words = len(note["text"].split())
+            if words > NOTE_WORDS:
+                raise UsageError(f"{file.name}: note {note['title']!r}: {words} words; expected at most {NOTE_WORDS} "
+                                 "(a longer text is a [[detail]], in the page's folded section)")
+
+    def _load(self, what: str, item: dict, kinds: tuple[str, ...]) -> dict:
+        path = self.root / item["summary"]
+        if not path.is_file():
+            raise UsageError(f"{self.file.name}: {what} {item['id']!r} ({item.get('label', '')}): "
+                             f"{path} not found; expected a kept summary")
+        data = kept.load(path, kinds)
+        if "config" in item:
+            data = {**data, "config": kept.config(self.root / item["config"])}
+        return {**data, **data.get("splits", {})}
+
+    # -- values ---------------------------------------------------------------------------------------------------
+    def value(self, path: str):
+        keys = path.split(".")
+        if keys[0] != "paper":
+            keys = [ALIASES.get(k, k) for k in keys]
+        elif keys[1] in self.paper["rows"]:  # paper.ROW.metric.split
+            return self.paper["rows"][keys[1]][keys[2]][SPLITS.index(keys[3])]
+        node = self.paper_all if keys[0] == "paper" else self.data[keys[0]]
+        for k in keys[1:]:
+            node = node[int(k)] if isinstance(node, list) else node[k]
+        return node
+
+    def fill(self, text: str) -> str:
+        def sub(m: re.Match) -> str:
+            try:
+                value = self.value(m.group(1))
+            except (KeyError, IndexError, ValueError):
+                raise UsageError(f"{self.file.name}: placeholder {m.group(0)}: no such value in the kept "
+                                 "summaries") from None
+            return format(value, m.group(2)) if m.group(2) else _fmt(value)
+        return PLACEHOLDER.sub(sub, text.strip())
+
+    # -- prose ----------------------------------------------------------------------------------------------------
+    def verdict(self) -> str:
+        text = self.fill(self.spec["verdict"])
+        sentences = len(SENTENCE_END.findall(text))
+        if sentences > VERDICT_SENTENCES:
+            raise UsageError(f"{self.file.name}: verdict: {sentences} sentences; expected at most "
+                             f"{VERDICT_SENTENCES} (the rest is a note)")
+        return text
+
+    def notes(self, section: str | None = None) -> list[str]:
+        """The short notes of a section (those without one where None), each a paragraph."""
+        return [line for note in self.spec.get("note", []) if note.get("section") == section
+                for line in (f"**{note['title']}.** {self.fill(note['text'])}", "")]
+
+    def details(self, summary: str = "Notes: how the figures were made and what they show") -> list[str]:
+        """The page's one folded section: every longer explanation, in the order declared."""
+        details = self.spec.get("detail", [])
+        if not details:
+            return []
+        return fold(summary, [line for d in details for line in (f"**{d['title']}.** {self.fill(d['text'])}", "")])
+
+    def files(self) -> dict[Path, bytes]:
+        raise NotImplementedError

@@ -1,0 +1,75 @@
+"""docs/results/training-speed.md (`kind = "speed"`): where a CPU training step goes, the speed levers, and each
+lever's runs side by side at equal wall time."""
+
+from __future__ import annotations
+
+from tax3d.pages.measurement import MeasurementPage
+from tax3d.pages.page import provenance
+
+
+class SpeedPage(MeasurementPage):
+    """docs/results/training-speed.md: where a CPU training step goes, the speed levers, and each lever's runs side
+    by side at equal wall time (sources: `table = "profile"`, a benchmarks/train_step.py JSON, and `table = "pair"`,
+    benchmarks/time_to_quality.py JSON)."""
+
+    def markdown(self) -> str:
+        profile = self.sources("profile")[0]
+        peaks = profile["matmul_peak_flops"]
+        lines = [f"# {self.spec['title']}", "", self.verdict(), "", "## Where a step goes", "",
+                 f"One training step on one core ({profile['threads']} torch thread), the median of the measured "
+                 f"steps; the core's matmul peak measured in the same run: {peaks['fp32'] / 1e9:.0f} GFLOP/s in "
+                 f"float32, {peaks['bf16'] / 1e9:.0f} GFLOP/s in bfloat16.", "",
+                 "| preset | seconds per step | data | forward | backward | optimizer | GFLOP per step | "
+                 "of the fp32 peak | of the bf16 peak |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+        for name, p in profile["presets"].items():
+            share = p["phase_share"]
+            lines.append(f"| {name} | {p['step_seconds']:.3f} | " + " | ".join(
+                f"{share[k]:.0%}" for k in ("data", "forward", "backward", "optimizer"))
+                + f" | {p['flops_per_step'] / 1e9:.1f} | {p['fraction_of_fp32_peak']:.0%} | "
+                f"{p['fraction_of_bf16_peak']:.0%} |")
+        levers = profile.get("levers", {})
+        labels = {"fp32": "float32, eager (the preset)", "bf16": "bfloat16 autocast", "compile": "torch.compile",
+                  "batch8": "batch 8", "batch32": "batch 32"}
+        if profile.get("top_ops"):
+            lines += ["", "The operators that take the most time (self CPU time, `torch.profiler`, "
+                      f"`{next(iter(profile['presets']))}`):", "", "| operator | share of the step |", "| --- | --- |",
+                      *[f"| `{o['op']}` | {o['share']:.0%} |" for o in profile["top_ops"]]]
+        lines += ["", f"Measured by {provenance(profile)} ([{profile['file']}]({profile['file']})).", "",
+                  *self.notes("profile"), "## Levers, step by step", "",
+                  "| lever | seconds per step | steps per second, against the preset | samples per second, against "
+                  "the preset |", "| --- | --- | --- | --- |"]
+        lines += [f"| {labels.get(k, k)} | {v['step_seconds']:.3f} | {v['speedup']:.2f} | "
+                  f"{v['samples_per_second_ratio']:.2f} |" for k, v in levers.items() if isinstance(v, dict)]
+        if profile.get("two_threads"):
+            t = profile["two_threads"]
+            lines += [f"| one run on two threads | {t['step_seconds_2_threads']:.3f} | {t['speedup_2_threads']:.2f} "
+                      f"(two runs of one thread each: 2 steps for every one-thread step) | - |"]
+        lines += ["", *self.notes("levers"), "## Side by side at equal wall time", ""]
+        for pair in self.sources("pair"):
+            runs = pair["runs"]
+            marks = max(len(r["curve"]) for r in runs.values())
+            lines += [f"**{pair['label']}** ({pair['minutes']:g}-minute plans, one core each, started together; "
+                      f"validation RMSE on the first {pair['val_demos']} demos of `{' '.join(pair['val'])}`, best of "
+                      f"{pair['val_samples']} samples):", "",
+                      "| run | steps | steps per minute | " + " | ".join(f"validation {i + 1}" for i in range(marks))
+                      + " |", "| --- | --- | --- |" + " --- |" * marks]
+            for name, r in runs.items():
+                cells = [f"{p['val_rmse']:.3f} ({p['minutes']:.0f} min)" for p in r["curve"]]
+                lines.append(f"| {name} | {r['steps']:,} | {r['steps_per_minute']:.0f} | "
+                             + " | ".join(cells + ["-"] * (marks - len(cells))) + " |")
+            lines += ["", f"Measured by `{pair['command']}` on {pair['machine']}, {pair['date']} "
+                          f"([{pair['file']}]({pair['file']})).", ""]
+        policy = self.sources("policy")
+        if policy:
+            lines += ["The policy with each run's kept weights (`best/`, chosen on the same val demos), 40 `val` episodes, "
+                      "success with its 95% Wilson interval:", "", "| run | success | goal RMSE | weights |",
+                      "| --- | --- | --- | --- |"]
+            for p in policy:
+                split = p["splits"]["val"]
+                low, high = split["success_ci95"]
+                lines.append(f"| {p['label']} | {split['success_rate']:.2f} ({low:.2f}-{high:.2f}) | {split['rmse']:.3f} "
+                             f"| `{p['weights_sha256'][:12]}` |")
+            lines += ["", *[f"- {p['label']}: {provenance(p)} ([{p['file']}]({p['file']}))." for p in policy], ""]
+        lines += self.notes("pairs")
+        lines += self.details()
+        return "\n".join(lines).rstrip() + "\n"
