@@ -140,6 +140,29 @@ def conclusions(paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
     return lines
 
 
+def verdict(paper: dict, rows: dict[int, dict[str, dict]]) -> str:
+    """One sentence: at each training-set size, whether TAX3D reaches the paper's success on the test splits."""
+    claim = next((c for c in paper.get("claims", []) if "reaches" in c), None)
+    if claim is None or not rows:
+        return ""
+    margin, parts = claim.get("margin", 0.0), []
+    for demos in sorted(rows):
+        gaps = []
+        for ref in claim["reaches"]:
+            key, split = ref.split(":")
+            if key in rows[demos]:
+                theirs = paper["rows"][key]["success"][("train", "unseen", "ood").index(split)]
+                gaps.append(theirs - rows[demos][key]["splits"][split]["success_rate"])
+        short = [g for g in gaps if g > margin + 1e-9]
+        if not gaps:
+            continue
+        parts.append(f"with {demos} training demonstrations " + (
+            f"TAX3D's {len(gaps)} success rates reach the paper's (within {margin:.2f})" if not short else
+            f"{len(short)} of TAX3D's {len(gaps)} success rates fall short of the paper's by "
+            f"{min(short):.2f}-{max(short):.2f}"))
+    return ("Under one protocol, " + "; ".join(parts) + " (TAX3D-CD and TAX3D-CP on unseen and ood).") if parts else ""
+
+
 def commands(rows: dict[int, dict[str, dict]]) -> list[str]:
     """Each kept row's command, machine, date, weights and how often its test episodes were scored."""
     lines = []

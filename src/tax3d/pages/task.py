@@ -150,14 +150,13 @@ class TaskPage(Page):
         rows = table.load_rows(self.root / "table" / self.spec.get("task", ""))
         if not rows:
             return []
-        return ["## The paper's table under one protocol", "", *table.markdown(self.spec["task"], self.paper, rows),
-                *fold("How each row was made", table.commands(rows)),
-                "## Earlier rows", "", "The rows below were trained with earlier recipes, their weights and settings "
-                "chosen on the `unseen` and `ood` episodes demo_0-39; the table above replaces them row by row.", ""]
+        return [table.verdict(self.paper, rows), "", "## The paper's table under one protocol", "",
+                *table.markdown(self.spec["task"], self.paper, rows),
+                *fold("How each row was made", table.commands(rows))]
 
     def markdown(self) -> str:
         spec = self.spec
-        lines = [f"# {spec['title']}", "", self.verdict(), "", *self.protocol(), *self.table(spec["headline"]), "",
+        lines = [self.verdict(), "", *self.table(spec["headline"]), "",
                  f"![success per split]({self.name}.png)", "", self.fill(spec["definitions"]), "", *self.notes(),
                  "## Every row", "", f"The paper's rows are from its {self.paper.get('table', 'tables')} "
                  "(docs/results/paper.toml).", "",
@@ -186,7 +185,12 @@ class TaskPage(Page):
             lines += ["## Seconds per episode", "", *fold(
                 "Mean prediction and simulation seconds per episode, per worker process, from the same evaluations "
                 "(other jobs on the machine; `benchmarks/` has the quiet-machine figures)", self.timings())]
-        return "\n".join(lines).rstrip() + "\n"
+        protocol = self.protocol()
+        if protocol:  # the table under one protocol heads the page; the earlier recipes' page folds below it
+            lines = [*protocol, "## Earlier recipes", "", "Rows trained with earlier recipes, their weights and "
+                     "settings chosen on the `unseen` and `ood` episodes demo_0-39; the table above replaces them row "
+                     "by row.", "", *fold("The earlier recipes' rows, notes and commands", lines)]
+        return "\n".join([f"# {spec['title']}", "", *lines]).rstrip() + "\n"
 
     def plot(self) -> bytes:
         bars = [self.metrics(ref) for ref in self.spec["headline"]]
