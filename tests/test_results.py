@@ -590,3 +590,22 @@ def test_missing_measurement_json_is_a_one_line_error(measured, capsys, rel):
 def test_training_page_without_its_markers_is_a_one_line_error(measured, capsys):
     (measured / "training.md").write_text("# T\n")
     one_line_error(capsys, ["results", "training", "--root", measured], "training.md: no <!-- study -->")
+
+
+def test_the_readme_row_is_the_protocols_cd_once_it_is_run(root):
+    """Before the table has a TAX3D-CD row the README shows the declared row; after, the protocol's, with intervals."""
+    from tests.test_table import row
+
+    def readme_row() -> str:
+        spec = results.declaration(root / "pages" / "fixture.toml")
+        paper = tomllib.loads((root / "paper.toml").read_text())
+        return results.TaskPage(root / "pages" / "fixture.toml", root, paper, spec).readme_row()
+
+    assert "| Fixture | 0.75 / 0.75 (TAX3D-CD, cpu preset, fixture) | 0.90 / 0.85 |" in readme_row()
+    for demos, success in ((64, 0.5), (512, 0.875)):
+        folder = root / "table" / "hangproccloth-unimodal" / str(demos)
+        folder.mkdir(parents=True)
+        (folder / "cd.json").write_text(json.dumps({**row("cd", success), "num_train": demos}))
+    assert readme_row().startswith("| Fixture | 0.88 (0.74-0.95) / 0.88 (0.74-0.95) (TAX3D-CD, 512 demos, "
+                                   "`--preset cpu`, 60-minute plan; weights chosen on `val`, test scored once) | "
+                                   "0.90 / 0.85 |")
