@@ -77,6 +77,10 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[s
 HOLDS, FAILS, NOISE, MISSING = "holds", "does not hold", "within noise", "not run yet"
 
 
+def _paper_success(paper_rows: dict, key: str, split: str) -> float:
+    return paper_rows[key]["success"][("train", "unseen", "ood").index(split)]
+
+
 def _value(row: dict, split: str, metric: str):
     s = row["splits"][split]
     return s["success_rate"] if metric == "success" else s.get(metric)
@@ -90,7 +94,7 @@ def _check(kept: dict, paper_rows: dict, claim: dict, worse: str, than: str | No
     if row is None or (than is not None and kept.get(than.split(":")[0]) is None):
         return MISSING, f"{NAMES.get(key, key)} {split}: {MISSING}"
     if than is None:  # `reaches`: our success against the paper's
-        ours, theirs = row["splits"][split], paper_rows[key]["success"][("train", "unseen", "ood").index(split)]
+        ours, theirs = row["splits"][split], _paper_success(paper_rows, key, split)
         verdict = HOLDS if ours["success_rate"] >= theirs - claim.get("margin", 0.0) - 1e-9 else FAILS
         return verdict, f"{NAMES.get(key, key)} {split} {ours['success_rate']:.2f} (paper {theirs:.2f})"
     other_key, other_split = than.split(":")
@@ -147,15 +151,12 @@ def verdict(paper: dict, rows: dict[int, dict[str, dict]]) -> str:
         return ""
     margin, parts = claim.get("margin", 0.0), []
     for demos in sorted(rows):
-        gaps = []
-        for ref in claim["reaches"]:
-            key, split = ref.split(":")
-            if key in rows[demos]:
-                theirs = paper["rows"][key]["success"][("train", "unseen", "ood").index(split)]
-                gaps.append(theirs - rows[demos][key]["splits"][split]["success_rate"])
-        short = [g for g in gaps if g > margin + 1e-9]
+        refs = [ref.split(":") for ref in claim["reaches"]]
+        gaps = [_paper_success(paper["rows"], key, split) - rows[demos][key]["splits"][split]["success_rate"]
+                for key, split in refs if key in rows[demos]]
         if not gaps:
             continue
+        short = [g for g in gaps if g > margin + 1e-9]
         parts.append(f"with {demos} training demonstrations " + (
             f"TAX3D's {len(gaps)} success rates reach the paper's (within {margin:.2f})" if not short else
             f"{len(short)} of TAX3D's {len(gaps)} success rates fall short of the paper's by "
