@@ -105,3 +105,39 @@ def test_a_row_records_the_benchmark_command(monkeypatch):
 
     monkeypatch.setattr("sys.argv", ["tax3d", "benchmark", "--task", "hangbag", "--keep", "docs/a b"])
     assert benchmark.command() == "tax3d benchmark --task hangbag --keep 'docs/a b'"
+
+
+def test_the_floor_and_ceiling_rows_score_fixed_goals_without_training(tmp_path, monkeypatch):
+    from tax3d import evaluate
+
+    asked = []
+
+    def fake_evaluate(a, progress=True):
+        asked.append(a)
+        a.out.mkdir(parents=True)  # as evaluate does
+        split = {"episodes": 1, "success_rate": 1.0, "success_ci95": [0.2, 1.0], "rmse": 0.5, "coverage_rmse": None,
+                 "precision_rmse": None}
+        return {"summary": {"splits": {"unseen": split, "ood": split}, "weights_sha256": None, "machine": "m",
+                            "date": "d"}}
+
+    monkeypatch.setattr(evaluate, "evaluate", fake_evaluate)
+    monkeypatch.setattr(train, "run", lambda a: pytest.fail("a fixed goal trains nothing"))
+    for split in ("train", "val", "unseen", "ood"):
+        (tmp_path / "data" / split).mkdir(parents=True)
+    monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: {"failed": []})
+    args = Args(task="hangproccloth-unimodal", variants="floor,ceiling", out=tmp_path / "b", episodes=1,
+                data=tmp_path / "data", keep=tmp_path / "keep", minutes=60)
+    assert run(args) == 0
+    assert [(a.goal, a.checkpoint, a.first_index) for a in asked] == [("mean", None, 100), ("demo", None, 100)]
+    floor = json.loads((tmp_path / "keep" / "floor.json").read_text())
+    assert floor["weights"] is None and floor["weights_sha256"] is None and floor["config"] is None
+    assert floor["weights_chosen_on"] == "nothing: a fixed goal" and floor["preset"] is None
+
+
+def test_an_unknown_row_is_one_line_naming_the_rows(tmp_path, capsys):
+    from tax3d.cli import main
+
+    assert main(["benchmark", "--variants", "cd,floor,bogus", "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert "--variants: unknown row 'bogus'" in err and "dp3, floor, ceiling" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "b").exists()

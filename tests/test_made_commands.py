@@ -1,5 +1,5 @@
-"""The training command beside a shipped checkpoint (on its result page and in its model card) makes that checkpoint's
-configuration with today's presets: a preset that changed since would otherwise make another model."""
+"""The training command beside a shipped checkpoint (on its result page and in its model card, a `tax3d train` or the
+`tax3d benchmark` of a table row) makes that checkpoint's configuration with today's presets: a preset that changed since would otherwise make another model."""
 
 from __future__ import annotations
 
@@ -11,10 +11,12 @@ import tomllib
 from pathlib import Path
 
 import pytest
+import tyro
 
+from tax3d import benchmark
 from tax3d import config as cfg
 from tax3d.commands import parses
-from tax3d.train import config_of_command
+from tax3d.train import config_of_command, resolve_config
 
 ROOT = Path(__file__).resolve().parents[1]
 # train fields that change the weights; `steps` too unless the run was planned in minutes
@@ -48,9 +50,22 @@ def kept_commands() -> list:
                 found.append(pytest.param(kept, row["made"], id=f"{page.stem}:{row['id']}"))
     for card in sorted((ROOT / "checkpoints").glob("*/README.md")):
         for line in card.read_text().splitlines():
-            if line.startswith("tax3d train"):
+            if line.startswith(("tax3d train", "tax3d benchmark")):
                 found.append(pytest.param(card.parent / "config.json", line, id=card.parent.name))
     return found
+
+
+def made_config(command: str, kept: cfg.Config) -> cfg.Config:
+    """The configuration `tax3d train ...` starts from, or the one `tax3d benchmark ...` trains its row with (its
+    training demonstrations read from KEPT: the benchmark takes the first NUM of a folder that CI does not have)."""
+    argv = shlex.split(command.split("#")[0])
+    if "benchmark" not in argv:
+        return config_of_command(argv[argv.index("train") + 1:])
+    args = tyro.cli(benchmark.Args, args=argv[argv.index("benchmark") + 1:], prog="tax3d benchmark")
+    data = args.data if args.data is not None else args.out / "data"
+    (variant,) = args.variants.split(",")
+    train_args = benchmark.train_args(args, variant, Path("."), tuple(kept.data.train), data / "val")
+    return resolve_config(train_args, Path("."), None)
 
 
 def differences(made: cfg.Config, shipped: cfg.Config) -> list[str]:
@@ -68,7 +83,6 @@ def differences(made: cfg.Config, shipped: cfg.Config) -> list[str]:
 def test_the_command_beside_a_kept_configuration_makes_it_with_todays_presets(kept, command):
     if kept.parent.parent != ROOT / "checkpoints" and not parses(command):
         pytest.skip("an option of the command was retired; its page shows it recorded with an earlier version")
-    argv = shlex.split(command.split("#")[0])
-    made = config_of_command(argv[argv.index("train") + 1:])
-    assert not differences(made, cfg.from_dict(json.loads(kept.read_text()), str(kept)))
+    shipped = cfg.from_dict(json.loads(kept.read_text()), str(kept))
+    assert not differences(made_config(command, shipped), shipped)
 

@@ -156,3 +156,37 @@ def test_every_shipped_checkpoint_has_its_card_declared():
     declared = (ROOT / "docs" / "results" / "pages" / "model-cards.toml").read_text()
     for folder in sorted((ROOT / "checkpoints").iterdir()):
         assert f'checkpoint = "checkpoints/{folder.name}"' in declared, folder.name
+
+
+def table_row(sha: str) -> dict:
+    split = {"episodes": 40, "success_rate": 0.95, "success_ci95": [0.83, 0.99], "rmse": 0.34,
+             "coverage_rmse": 0.24, "precision_rmse": 0.34}
+    return kept.stamp("table-row", {
+        "task": "hangproccloth-unimodal", "variant": "cd", "preset": "cpu", "minutes": 60.0, "num_train": 512,
+        "weights": "best", "weights_chosen_on": "val", "weights_sha256": sha,
+        "validations": [{"step": 10, "val_rmse": 0.5}, {"step": 20, "val_rmse": 0.3}, {"step": 25, "val_rmse": 0.31}],
+        "test": {"first_index": 100, "episodes": 40, "samples": 5, "scorings": 1},
+        "splits": {"unseen": split, "ood": {**split, "success_rate": 0.5, "success_ci95": [0.35, 0.65]}},
+        "command": "tax3d benchmark --task hangproccloth-unimodal --variants cd --num-train 512 --minutes 60",
+        "machine": "m", "date": "2026-01-03"})
+
+
+def test_model_card_of_a_table_row_states_its_protocol_and_one_command(tmp_path, capsys):
+    checkpoint(tmp_path, "tax3d-cd-x", data__task="hangproccloth-unimodal")
+    sha = json.loads((tmp_path / "checkpoints" / "tax3d-cd-x" / "config.json").read_text())["weights_sha256"]
+    card_spec = [{"checkpoint": "checkpoints/tax3d-cd-x", "row": "table/hangproccloth-unimodal/512/cd.json"}]
+    root = repository(tmp_path, card_spec, {"table/hangproccloth-unimodal/512/cd.json": table_row(sha)})
+    card = built(root, "tax3d-cd-x")
+    assert "trained on 512 of this project's demonstrations (the paper trains on 64)" in card
+    assert "`unseen` and `ood` demo_100-139, which no choice has touched, scored once" in card
+    # beside the paper's TAX3D-CD on unimodal (appendix D.2): success 0.90 / 0.85, RMSE 0.405 / 0.395
+    assert "| unseen | 40 | 0.95 (0.83-0.99) | 0.90 | 0.340 | 0.405 | 0.240 | 0.340 |" in card
+    assert "| ood | 40 | 0.50 (0.35-0.65) | 0.85 |" in card
+    assert "weights chosen on `val`: these are the run's best weights, validation RMSE 0.300 at step 20" in card
+    assert "```bash\ntax3d benchmark --task hangproccloth-unimodal --variants cd" in card
+    assert main(["results", "--root", str(root), "--check"]) == 0
+
+    # the checkpoint's weights must be the row's: another sha is a one-line error naming both
+    (root / "table/hangproccloth-unimodal/512/cd.json").write_text(json.dumps(table_row("0" * 64)))
+    one_line_error(capsys, ["results", "model-cards", "--root", root], "tax3d-cd-x/config.json", "0" * 64,
+                   "the weights of the row")

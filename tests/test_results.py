@@ -520,10 +520,10 @@ def test_measurement_pages_from_fixture_json(measured):
     assert "| prediction of 20,000 action points, network on 256, 10-step DDPM | 0.25 s |" in official
     assert "| 0.250 / 0.200 (ratio **1.250**) |" in official and "on the 8 `val` cloths" in official
     training = (measured / "training.md").read_text()
-    # the verdict names the shipped recipe, not the lowest RMSE of the study
-    assert training.startswith("# T\n\nbefore\n<!-- study -->\n**The shipped recipe, `--opt v-grip16-all512-110min` "
-                               "on today's `cpu` preset with all `512` unimodal training demos "
-                               "(`checkpoints/tax3d-cd-unimodal`), ends its 110-minute plan at validation RMSE 0.700** "
+    # the verdict names the recipe the preset took up, not the lowest RMSE of the study
+    assert training.startswith("# T\n\nbefore\n<!-- study -->\n**The study's recipe, now the `cpu` preset "
+                               "(`--opt v-grip16-all512-110min` on the preset of its time), with all `512` unimodal "
+                               "training demos ends its 110-minute plan at validation RMSE 0.700** "
                                "(mean-goal floor 1.750;")
     assert "and hangs 0.88 / 0.85 of `unseen` / `ood` cloths (the paper's: 0.90 / 0.85)." in training
     assert training.endswith("<!-- /study -->\nafter\n") and "old" not in training

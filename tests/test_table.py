@@ -82,3 +82,24 @@ def test_an_rmse_claim_needs_its_factor():
         nac["splits"]["unseen"]["rmse"] = rmse
         (line,) = [l for l in table.conclusions(paper, {16: {"CD": row("cd", 0.9), "CD-NAC": nac}}) if l.startswith("| c")]
         assert line.endswith(f"**{expected}** |")
+
+
+def test_the_fixed_goals_bound_the_table_and_smaller_sizes_list_only_their_rows(tmp_path):
+    for demos, variant in ((512, "cd"), (512, "floor"), (512, "ceiling"), (64, "cd")):
+        folder = tmp_path / "hangproccloth-unimodal" / str(demos)
+        folder.mkdir(parents=True, exist_ok=True)
+        kept = row(variant, {"floor": 0.375, "ceiling": 0.9}.get(variant, 0.875))
+        if variant in table.FIXED:
+            kept.update(preset=None, weights=None, weights_sha256=None, validations=[], config=None,
+                        weights_chosen_on="nothing: a fixed goal")
+        (folder / f"{variant}.json").write_text(json.dumps({**kept, "num_train": demos}))
+    paper = tomllib.loads((ROOT / "docs" / "results" / "paper.toml").read_text())["hangproccloth-unimodal"]
+    rows = table.load_rows(tmp_path / "hangproccloth-unimodal")
+    text = "\n".join(table.markdown("hangproccloth-unimodal", paper, rows))
+    small, large = text.split("**512 training demonstrations**")
+    assert "| TAX3D-CD | **0.88**" in small and "TAX3D-CP" not in small.split("**Conclusions")[0]
+    assert "| mean goal of train (the floor) | **0.38** (0.24-0.53) | - |" in large
+    assert "| each demo's own goal (the ceiling) | **0.90**" in large and "| TAX3D-CP | not run yet |" in large
+    assert "every row `--preset cpu`" in large  # the preset of the trained rows, not the fixed goals' none
+    assert any("mean goal of train (the floor), 512 demos:" in line and "no weights (a fixed goal)" in line
+               for line in table.commands(rows))

@@ -21,6 +21,8 @@ from tax3d.errors import UsageError
 from tax3d.options import NonNegative, OutputFolder, Positive
 from tax3d.table import ROW_KIND, ROW_VERSION
 
+FIXED_GOALS = {"floor": "mean", "ceiling": "demo"}  # row: `tax3d eval --goal` (no network, nothing trained)
+
 
 
 @dataclass
@@ -30,7 +32,9 @@ class Args:
     task: str = "hangproccloth-simple"
     variants: str = "cd,cp"
     """comma-separated rows: cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd, rp, dp3 (the baseline, trained on the
-    same demonstrations with their trajectories, for the same minutes; its last weights)"""
+    same demonstrations with their trajectories, for the same minutes; its last weights), and the fixed goals that
+    bound the policy: floor (the mean goal of the train folder in the anchor frame) and ceiling (each episode's own
+    demonstrated goal), scored on the same test episodes without training"""
     out: Annotated[Path, OutputFolder] = Path("runs/benchmark")
     """output folder: data/<split>, <variant>/train, <variant>/eval, results.md"""
     preset: Literal["cpu", "cpu-multimodal", "paper"] | None = None
@@ -102,7 +106,6 @@ def _train_files(folder: Path, num: int) -> tuple[str, ...]:
 
 
 def _train(args: Args, variant: str, data: Path) -> Path:
-    from tax3d import config as cfg
     from tax3d import train
     from tax3d.sim.tasks import get_task
 
@@ -112,16 +115,23 @@ def _train(args: Args, variant: str, data: Path) -> Path:
         return _train_dp3(args, out, _train_files(data / "train-traj", num))
     if not (out / "DONE").exists():
         print(f"[benchmark] training {variant} -> {out}", flush=True)
-        train.run(train.Args(
-            out=str(out), preset=preset_of(args),
-            model=cfg.ModelOverrides(**_only(cfg.ModelOverrides, variant=variant)),
-            data=cfg.DataOverrides(**_only(cfg.DataOverrides, train=_train_files(data / "train", num),
-                                           val=(str(data / "val"),), task=args.task)),
-            train=cfg.TrainOverrides(**_only(cfg.TrainOverrides, steps=args.steps, device=args.device,
-                                             minutes=args.minutes if args.minutes > 0 else None)),
-        ))  # fmt: skip
+        train.run(train_args(args, variant, out, _train_files(data / "train", num), data / "val"))
         write_text(out / "DONE", "finished\n")
     return out / "best" if (out / "best").is_dir() else out / "last"
+
+
+def train_args(args: Args, variant: str, out: Path, files: tuple[str, ...], val: Path):
+    """The `tax3d train` a row runs: the preset, the variant, the demonstrations and the budget, nothing else."""
+    from tax3d import config as cfg
+    from tax3d import train
+
+    return train.Args(
+        out=str(out), preset=preset_of(args),
+        model=cfg.ModelOverrides(**_only(cfg.ModelOverrides, variant=variant)),
+        data=cfg.DataOverrides(**_only(cfg.DataOverrides, train=files, val=(str(val),), task=args.task)),
+        train=cfg.TrainOverrides(**_only(cfg.TrainOverrides, steps=args.steps, device=args.device,
+                                         minutes=args.minutes if args.minutes > 0 else None)),
+    )  # fmt: skip
 
 
 def _train_dp3(args: Args, out: Path, files: tuple[str, ...]) -> Path:
@@ -146,7 +156,7 @@ def _only(cls, **values) -> dict:
     return {k: v for k, v in values.items() if k in names and v is not None}
 
 
-def _score(args: Args, variant: str, checkpoint: Path, data: Path) -> dict:
+def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dict:
     """The row's summary: scored on the test episodes now, or read back when it has been (unless --rescore)."""
     from tax3d.checkpoint import read_log
     from tax3d.evaluate import Args as EvalArgs
@@ -156,19 +166,23 @@ def _score(args: Args, variant: str, checkpoint: Path, data: Path) -> dict:
     row = json.loads(path.read_text()) if path.is_file() else None
     if row is not None and not args.rescore:
         return row
-    print(f"[benchmark] scoring {variant} ({checkpoint}) on the test episodes", flush=True)
-    summary = evaluate(EvalArgs(checkpoint=checkpoint, task=args.task, splits="unseen,ood", data=data,
+    print(f"[benchmark] scoring {variant} ({checkpoint or 'a fixed goal'}) on the test episodes", flush=True)
+    summary = evaluate(EvalArgs(checkpoint=checkpoint, goal=FIXED_GOALS.get(variant, "model"), task=args.task,
+                                splits="unseen,ood", data=data,
                                 first_index=args.first_index, episodes=args.episodes, samples=args.samples,
                                 workers=args.workers, device=args.device, out=args.out / variant / "eval"),
                        progress=False)["summary"]
     run = args.out / variant / "train"
-    validations = [{"step": r["step"], "val_rmse": r["val_rmse"]} for r in read_log(run / "log.jsonl")
-                   if "val_rmse" in r]
-    config = json.loads((checkpoint / "config.json").read_text())
-    preset = preset_of(args) if variant != "dp3" else ("paper" if args.preset == "paper" else "cpu")
+    validations = [] if checkpoint is None else [{"step": r["step"], "val_rmse": r["val_rmse"]}
+                                                 for r in read_log(run / "log.jsonl") if "val_rmse" in r]
+    config = None if checkpoint is None else json.loads((checkpoint / "config.json").read_text())
+    preset = (None if checkpoint is None else preset_of(args) if variant != "dp3"
+              else "paper" if args.preset == "paper" else "cpu")
     row = {"kind": ROW_KIND, "version": ROW_VERSION, "task": args.task, "variant": variant,
            "preset": preset, "minutes": args.minutes, "num_train": args.num_train,
-           "weights": checkpoint.name, "weights_chosen_on": "val" if checkpoint.name == "best" else "last step",
+           "weights": None if checkpoint is None else checkpoint.name,
+           "weights_chosen_on": ("nothing: a fixed goal" if checkpoint is None
+                                 else "val" if checkpoint.name == "best" else "last step"),
            "weights_sha256": summary["weights_sha256"], "validations": validations, "config": config,
            "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
                     "scorings": (row or {}).get("test", {}).get("scorings", 0) + 1},
@@ -188,15 +202,18 @@ def command() -> str:
 
 def _check(args: Args) -> list[str]:
     from tax3d.devices import pick_device
-    from tax3d.variants import variant_spec
+    from tax3d.variants import VARIANTS
     from tax3d.sim.tasks import get_task
 
     get_task(args.task)
     pick_device(args.device)  # a bad --device fails before any demonstration is generated
     if args.steps is not None and args.minutes > 0:
         raise UsageError(f"--steps {args.steps}: not with --minutes {args.minutes:g}; expected one budget")
-    variants = [v.strip() if v.strip() == "dp3" else variant_spec(v.strip()).name
-                for v in args.variants.split(",") if v.strip()]
+    variants = [v.strip().lower().replace("-", "_") for v in args.variants.split(",") if v.strip()]
+    rows = (*VARIANTS, "dp3", *FIXED_GOALS)
+    unknown = [v for v in variants if v not in rows]
+    if unknown:
+        raise UsageError(f"--variants: unknown row {unknown[0]!r}; expected some of {', '.join(rows)}")
     if not variants:
         raise UsageError("--variants: expected at least one variant")
     if args.keep is not None:
@@ -211,7 +228,7 @@ def run(args: Args) -> int:
     data = _generate_data(args)
     tables = {}
     for variant in variants:
-        checkpoint = _train(args, variant, data)
+        checkpoint = None if variant in FIXED_GOALS else _train(args, variant, data)
         tables[variant] = _score(args, variant, checkpoint, data)["splits"]
     lines = [f"# {args.task}: {', '.join(variants)}", ""]
     for variant, table in tables.items():

@@ -16,9 +16,11 @@ from tax3d.errors import UsageError
 
 ROW_KIND, ROW_VERSION = "table-row", 1
 PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": "CD-NAC", "cp_nac": "CP-NAC",
-              "sd": "SD", "sp": "SP", "rd": "RD", "rp": "RP", "dp3": "DP3"}
-ORDER = ("CD", "CP", "CD-W", "CP-W", "CD-NAC", "CP-NAC", "SD", "SP", "RD", "RP", "DP3")
-NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP"}
+              "sd": "SD", "sp": "SP", "rd": "RD", "rp": "RP", "dp3": "DP3", "floor": "floor", "ceiling": "ceiling"}
+ORDER = ("CD", "CP", "CD-W", "CP-W", "CD-NAC", "CP-NAC", "SD", "SP", "RD", "RP", "DP3", "floor", "ceiling")
+FIXED = ("floor", "ceiling")  # no paper row: the policy with the mean goal of train, and with each demo's own goal
+NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP", "floor": "mean goal of train (the floor)",
+         "ceiling": "each demo's own goal (the ceiling)"}
 
 
 def load_rows(folder: Path) -> dict[int, dict[str, dict]]:
@@ -47,14 +49,15 @@ def _rmse(row: dict | None, split: str) -> str:
 
 
 def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
-    """One table per training-set size: each of the paper's rows, its success and RMSE beside ours."""
+    """One table per training-set size: each of the paper's rows (at smaller sizes, those we ran), its success and
+    RMSE beside ours."""
     paper_rows = paper.get("rows", {})
-    keys = [k for k in ORDER if k in paper_rows]
+    keys = [k for k in ORDER if k in paper_rows or k in FIXED]
     lines = []
     paper_demos = paper.get("demos", [None])[0]
     for demos in sorted(rows):
         kept = rows[demos]
-        first = next(iter(kept.values()))
+        first = next((r for r in kept.values() if r.get("preset")), next(iter(kept.values())))
         like = "the paper's count" if demos == paper_demos else f"the paper trains on {paper_demos}"
         lines += [f"**{demos} training demonstrations** ({like}); every row `--preset {first['preset']}`, "
                   f"{first['minutes']:g}-minute plans on one core, weights chosen on `val`, scored once on "
@@ -62,12 +65,14 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[s
                   f"{first['test']['samples']} goal samples an episode; success with its 95% Wilson interval:", "",
                   "| row | success unseen | paper | success ood | paper | RMSE unseen | paper | RMSE ood | paper |",
                   "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
-        for key in keys:
-            row, theirs = kept.get(key), paper_rows[key]
+        # below the largest size only the rows run there (TAX3D-CD and -CP at the paper's count) are listed
+        for key in keys if demos == max(rows) else [k for k in keys if k in kept]:
+            row, theirs = kept.get(key), paper_rows.get(key, {})
             rmse = theirs.get("rmse", (None, None, None))
+            success = theirs.get("success", (None, None, None))
             cell = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
-            lines.append(f"| {NAMES.get(key, key)} | {_success(row, 'unseen')} | {theirs['success'][1]:.2f} | "
-                         f"{_success(row, 'ood')} | {theirs['success'][2]:.2f} | {_rmse(row, 'unseen')} | "
+            lines.append(f"| {NAMES.get(key, key)} | {_success(row, 'unseen')} | {cell(success[1], '.2f')} | "
+                         f"{_success(row, 'ood')} | {cell(success[2], '.2f')} | {_rmse(row, 'unseen')} | "
                          f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} |")
         lines.append("")
     lines += conclusions(paper, rows)
@@ -175,7 +180,8 @@ def commands(rows: dict[int, dict[str, dict]]) -> list[str]:
             best = min(row["validations"], key=lambda v: v["val_rmse"]) if row["validations"] else None
             chosen = (f"best val RMSE {best['val_rmse']:.3f} at step {best['step']:,} of "
                       f"{row['validations'][-1]['step']:,}" if best else row["weights_chosen_on"])
+            weights = (f"weights `{row['weights']}` ({chosen}), sha256 `{row['weights_sha256'][:12]}`"
+                       if row["weights_sha256"] else "no weights (a fixed goal)")
             lines.append(f"- {NAMES.get(key, key)}, {demos} demos: `{row['command']}` on {row['machine']}, "
-                         f"{row['date']}; weights `{row['weights']}` ({chosen}), sha256 "
-                         f"`{row['weights_sha256'][:12]}`; test episodes scored {row['test']['scorings']} time(s)")
+                         f"{row['date']}; {weights}; test episodes scored {row['test']['scorings']} time(s)")
     return lines

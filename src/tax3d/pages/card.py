@@ -1,7 +1,9 @@
 """The model card of each shipped checkpoint (`kind = "cards"`): CHECKPOINT/README.md, from the checkpoint's
 config.json, its kept evaluation and training log and the paper's table; no number typed by hand.
 
-Each `card` of the declaration holds `checkpoint` (a folder, relative to the repository), `eval` (its kept `tax3d
+Each `card` of the declaration holds `checkpoint` (a folder, relative to the repository) and either `row` (the
+table row whose weights it ships, as `tax3d benchmark --keep` wrote it: its test episodes, how its weights were chosen
+and the one command that made it) or `eval` (its kept `tax3d
 eval` summary), optional `log` (its kept `tax3d train` log; left out for a run whose log was not kept: the card says
 so), optional `official` (the RMSE on the authors' `val` split, for a checkpoint trained on their demonstrations),
 and the commands that made its data and its weights (`data`, `train`).
@@ -9,11 +11,24 @@ and the commands that made its data and its weights (`data`, `train`).
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 from tax3d import kept
 from tax3d.commands import shown
+from tax3d.errors import UsageError
 from tax3d.pages.page import SPLITS, Page, cell
+from tax3d.table import NAMES, PAPER_KEYS
+
+
+CARDS = Path("pages") / "model-cards.toml"
+
+
+def shipped_rows(root: Path, task: str) -> list[tuple[str, str]]:
+    """(row file, checkpoint) of each card that ships a row of TASK's table; ROOT is docs/results/."""
+    path = root / CARDS
+    cards = tomllib.loads(path.read_text()).get("card", []) if path.is_file() else []
+    return [(c["row"], c["checkpoint"]) for c in cards if c.get("row", "").startswith(f"table/{task}/")]
 
 
 def success_table(splits: dict, paper: dict | None) -> list[str]:
@@ -92,11 +107,7 @@ def card(checkpoint: str, config: dict, records: list[dict], summary: dict, data
         "",
         "## Training",
         "",
-        f"- network: hidden {config['model']['hidden_size']}, depth {config['model']['depth']}; loss "
-        f"`{config['diffusion'].get('loss', 'epsilon')}`, prediction `{config['diffusion']['prediction']}`, "
-        f"sampler {config['diffusion']['sample_steps']}-step {config['diffusion']['sampler'].upper()}"
-        + (f"; the grasped vertices weigh {config['data']['grip_weight']:g} in the loss"
-           if config["data"].get("grip_weight", 1.0) != 1.0 else ""),
+        network_line(config),
         "- training demonstrations: " + ", ".join(f"`{folder}`" for folder in config["data"]["train"])
         + " (made by the first command below)",
         *run_lines(config, records, plan),
@@ -113,6 +124,13 @@ def card(checkpoint: str, config: dict, records: list[dict], summary: dict, data
         train_command,
         "```",
         "",
+        *limits(task, config),
+    ]
+    return "\n".join(lines)
+
+
+def limits(task: str, config: dict) -> list[str]:
+    return [
         "## Intended use and limits",
         "",
         f"- For research on relative placement of deformables in the simulated `{task}` scenes; the inputs are "
@@ -124,7 +142,76 @@ def card(checkpoint: str, config: dict, records: list[dict], summary: dict, data
         "- A CPU-budget model: see the table against the paper's before relying on it.",
         "",
     ]
-    return "\n".join(lines)
+
+
+def network_line(config: dict) -> str:
+    return (f"- network: hidden {config['model']['hidden_size']}, depth {config['model']['depth']}; loss "
+            f"`{config['diffusion'].get('loss', 'epsilon')}`, prediction `{config['diffusion']['prediction']}`, "
+            f"sampler {config['diffusion']['sample_steps']}-step {config['diffusion']['sampler'].upper()}"
+            + (f"; the grasped vertices weigh {config['data']['grip_weight']:g} in the loss"
+               if config["data"].get("grip_weight", 1.0) != 1.0 else ""))
+
+
+def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict) -> str:
+    """The card of weights shipped from a table row: its test episodes scored once, chosen on `val`, one command."""
+    task, key = row["task"], PAPER_KEYS[row["variant"]]
+    name, paper = NAMES.get(key, key), paper_task.get("rows", {}).get(key)
+    paper_demos = paper_task.get("demos", [None])[0]
+    test, vals = row["test"], row["validations"]
+    best = min(vals, key=lambda v: v["val_rmse"])
+    scored = "once" if test["scorings"] == 1 else f"{test['scorings']} times"
+    lines = ["| split | episodes | success (95% interval) | paper success | goal RMSE | paper RMSE | coverage RMSE "
+             "| precision RMSE |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for split, s in row["splits"].items():
+        column = SPLITS.index(split)
+        paper_rmse = paper["rmse"][column] if paper and "rmse" in paper else None
+        low, high = s["success_ci95"]
+        lines.append(f"| {split} | {s['episodes']} | {s['success_rate']:.2f} ({low:.2f}-{high:.2f}) | "
+                     f"{cell(paper['success'][column] if paper else None, '{:.2f}')} | {cell(s.get('rmse'), '{:.3f}')} "
+                     f"| {cell(paper_rmse, '{:.3f}')} | {cell(s.get('coverage_rmse'), '{:.3f}')} | "
+                     f"{cell(s.get('precision_rmse'), '{:.3f}')} |")
+    return "\n".join([
+        f"# {name} for {task}",
+        "",
+        f"A {name} goal predictor (a diffusion transformer over per-point cross-displacements) for `{task}`: the "
+        f"{name} row of [its table](../../docs/results/{task}.md), trained on {row['num_train']} of this project's "
+        f"demonstrations (the paper trains on {paper_demos}) with the `{row['preset']}` preset "
+        f"([docs/training.md](../../docs/training.md)) for a {row['minutes']:g}-minute plan on one core.",
+        "",
+        "```python",
+        "from tax3d import Tax3D",
+        f'model = Tax3D.from_pretrained("{checkpoint}")',
+        "goals = model.predict(action_points, anchor_points, num_samples=5)  # (5, N, 3), world frame",
+        "```",
+        "",
+        "## Results",
+        "",
+        f"The test episodes, `unseen` and `ood` demo_{test['first_index']}-{test['first_index'] + test['episodes'] - 1}, "
+        f"which no choice has touched, scored {scored} "
+        f"with these weights and {test['samples']} goal samples an episode (the policy executes the first), "
+        f"{row['date']}, {row['machine']}; the paper's figures from its appendix D (docs/results/paper.toml):",
+        "",
+        *lines,
+        "",
+        "## Training",
+        "",
+        network_line(config),
+        f"- training demonstrations: the first {row['num_train']} of `train` (generated by the command below)",
+        f"- steps: {vals[-1]['step']:,} (a {row['minutes']:g}-minute plan on one core)",
+        f"- weights chosen on `{row['weights_chosen_on']}`: these are the run's {row['weights']} weights, validation "
+        f"RMSE {best['val_rmse']:.3f} at step {best['step']:,} (the last validation: {vals[-1]['val_rmse']:.3f} at "
+        f"step {vals[-1]['step']:,})",
+        f"- weights sha256: `{row['weights_sha256']}`",
+        "",
+        "One command generates the demonstrations it lacks (train, `val`, the test episodes), trains, keeps the weights "
+        "that validate best on `val` and scores the test episodes once:",
+        "",
+        "```bash",
+        row["command"],
+        "```",
+        "",
+        *limits(task, config),
+    ])
 
 
 class CardsPage(Page):
@@ -138,6 +225,14 @@ class CardsPage(Page):
         for c in self.spec.get("card", []):
             folder = repository / c["checkpoint"]
             config = kept.config(folder / "config.json")
+            if c.get("row"):
+                row = kept.read(self.root / c["row"], ("table-row",))
+                if config.get("weights_sha256") != row["weights_sha256"]:
+                    raise UsageError(f"{c['checkpoint']}/config.json: weights sha256 {config.get('weights_sha256')}; "
+                                     f"expected {row['weights_sha256']}, the weights of the row {c['row']}")
+                out[folder / "README.md"] = row_card(c["checkpoint"], config, row,
+                                                     self.paper_all.get(row["task"], {})).encode()
+                continue
             summary = kept.load(self.root / c["eval"], ("eval",))
             records = kept.read(self.root / c["log"], ("train-log",))["records"] if c.get("log") else []
             official = kept.load(self.root / c["official"], ("official-val",)) if c.get("official") else None

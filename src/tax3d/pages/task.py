@@ -17,6 +17,7 @@ from tax3d import table
 from tax3d.commands import EARLIER, shown
 from tax3d.errors import UsageError
 from tax3d.pages import plots
+from tax3d.pages.card import shipped_rows
 from tax3d.pages.page import SPLITS, Page, cell, fold
 
 VARIANT_NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP"}
@@ -150,8 +151,12 @@ class TaskPage(Page):
         rows = table.load_rows(self.root / "table" / self.spec.get("task", ""))
         if not rows:
             return []
+        shipped = [f"the {table.NAMES.get(key, key)} row at {demos} demos as [{checkpoint}](../../{checkpoint}/README.md)"
+                   for path, checkpoint in shipped_rows(self.root, self.spec["task"])
+                   for demos, key in [(int(Path(path).parent.name), table.PAPER_KEYS[Path(path).stem])]]
+        ship = [f"Shipped: {', '.join(shipped)}, each with its model card.", ""] if shipped else []
         return [table.verdict(self.paper, rows), "", "## The paper's table under one protocol", "",
-                *table.markdown(self.spec["task"], self.paper, rows),
+                *table.markdown(self.spec["task"], self.paper, rows), *ship,
                 *fold("How each row was made", table.commands(rows))]
 
     def markdown(self) -> str:
