@@ -19,6 +19,7 @@ PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": 
               "sd": "SD", "sp": "SP", "rd": "RD", "rp": "RP", "dp3": "DP3", "floor": "floor", "ceiling": "ceiling"}
 ORDER = ("CD", "CP", "CD-W", "CP-W", "CD-NAC", "CP-NAC", "SD", "SP", "RD", "RP", "DP3", "floor", "ceiling")
 FIXED = ("floor", "ceiling")  # no paper row: the policy with the mean goal of train, and with each demo's own goal
+PAPER_METRICS = {"rmse": "rmse", "coverage_rmse": "coverage", "precision_rmse": "precision"}  # ours: the paper's
 NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP", "floor": "mean goal of train (the floor)",
          "ceiling": "each demo's own goal (the ceiling)"}
 
@@ -33,6 +34,10 @@ def load_rows(folder: Path) -> dict[int, dict[str, dict]]:
                              f"{ROW_KIND!r} of version {ROW_VERSION}, as `tax3d benchmark --keep` writes")
         rows.setdefault(int(path.parent.name), {})[PAPER_KEYS[row["variant"]]] = row
     return rows
+
+
+def cell(value, fmt: str) -> str:
+    return "-" if value is None else format(value, fmt)
 
 
 def _success(row: dict | None, split: str) -> str:
@@ -70,13 +75,33 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[s
             row, theirs = kept.get(key), paper_rows.get(key, {})
             rmse = theirs.get("rmse", (None, None, None))
             success = theirs.get("success", (None, None, None))
-            cell = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
             lines.append(f"| {NAMES.get(key, key)} | {_success(row, 'unseen')} | {cell(success[1], '.2f')} | "
                          f"{_success(row, 'ood')} | {cell(success[2], '.2f')} | {_rmse(row, 'unseen')} | "
                          f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} |")
         lines.append("")
+        lines += _goal_table(keys if demos == max(rows) else [k for k in keys if k in kept], kept, paper_rows)
     lines += conclusions(paper, rows)
     return lines
+
+
+def _goal_table(keys: list[str], kept: dict[str, dict], paper_rows: dict) -> list[str]:
+    """Where the paper gives coverage and precision RMSE (two demonstrated goals a cloth), ours beside them."""
+    if not any("coverage" in paper_rows.get(k, {}) for k in keys):
+        return []
+    lines = ["Coverage RMSE (for each demonstrated goal, the nearest of the goal samples) and precision RMSE (for each "
+             "sample, the nearest demonstrated goal), beside the paper's:", "",
+             "| row | coverage unseen | paper | precision unseen | paper | coverage ood | paper | precision ood | paper |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for key in keys:
+        row, theirs = kept.get(key), paper_rows.get(key, {})
+        cells = []
+        for split, column in (("unseen", 1), ("ood", 2)):
+            for metric in ("coverage_rmse", "precision_rmse"):
+                ours = None if row is None else row["splits"][split].get(metric)
+                paper = theirs.get(PAPER_METRICS[metric], (None, None, None))[column]
+                cells += [cell(ours, ".3f") if row is not None else "not run yet", cell(paper, ".3f")]
+        lines.append(f"| {NAMES.get(key, key)} | " + " | ".join(cells) + " |")
+    return lines + [""]
 
 
 HOLDS, FAILS, NOISE, MISSING = "holds", "does not hold", "within noise", "not run yet"
@@ -98,6 +123,11 @@ def _check(kept: dict, paper_rows: dict, claim: dict, worse: str, than: str | No
     row = kept.get(key)
     if row is None or (than is not None and kept.get(than.split(":")[0]) is None):
         return MISSING, f"{NAMES.get(key, key)} {split}: {MISSING}"
+    if than is None and metric != "success":  # `reaches` an error: ours at or below the paper's
+        ours = row["splits"][split].get(metric)
+        theirs = paper_rows[key][PAPER_METRICS[metric]][("train", "unseen", "ood").index(split)]
+        verdict = HOLDS if ours is not None and ours <= theirs + claim.get("margin", 0.0) + 1e-9 else FAILS
+        return verdict, f"{NAMES.get(key, key)} {split} {cell(ours, '.3f')} (paper {theirs:.3f})"
     if than is None:  # `reaches`: our success against the paper's
         ours, theirs = row["splits"][split], _paper_success(paper_rows, key, split)
         verdict = HOLDS if ours["success_rate"] >= theirs - claim.get("margin", 0.0) - 1e-9 else FAILS
@@ -138,7 +168,9 @@ def conclusions(paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
             verdict = _verdict([v for v, _ in checks])
             if verdict == MISSING and demos != max(rows):
                 continue
-            test = ("at or above the paper's minus %.2f" % claim.get("margin", 0.0) if "reaches" in claim
+            metric = claim.get("metric", "success")
+            test = (f"{metric.replace('_', ' ')} at or below the paper's" if "reaches" in claim and metric != "success"
+                    else "at or above the paper's minus %.2f" % claim.get("margin", 0.0) if "reaches" in claim
                     else "lower success" if claim.get("metric", "success") == "success"
                     else f"{claim['metric'].replace('_', ' ')} over {claim.get('factor', 1.0):g}x")
             numbers = "; ".join(text for v, text in checks if v != MISSING) or "-"
@@ -151,7 +183,8 @@ def conclusions(paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
 
 def verdict(paper: dict, rows: dict[int, dict[str, dict]]) -> str:
     """One sentence: at each training-set size, whether TAX3D reaches the paper's success on the test splits."""
-    claim = next((c for c in paper.get("claims", []) if "reaches" in c), None)
+    claim = next((c for c in paper.get("claims", []) if "reaches" in c and c.get("metric", "success") == "success"),
+                 None)
     if claim is None or not rows:
         return ""
     margin, parts = claim.get("margin", 0.0), []
@@ -165,7 +198,7 @@ def verdict(paper: dict, rows: dict[int, dict[str, dict]]) -> str:
         parts.append(f"with {demos} training demonstrations " + (
             f"TAX3D's {len(gaps)} success rates reach the paper's (within {margin:.2f})" if not short else
             f"{len(short)} of TAX3D's {len(gaps)} success rates fall short of the paper's by "
-            f"{min(short):.2f}-{max(short):.2f}"))
+            + (f"{min(short):.2f}" if len(short) == 1 else f"{min(short):.2f}-{max(short):.2f}")))
     return ("Under one protocol, " + "; ".join(parts) + " (TAX3D-CD and TAX3D-CP on unseen and ood).") if parts else ""
 
 
