@@ -42,7 +42,10 @@ def test_a_file_of_another_kind_is_refused(tmp_path):
     folder = tmp_path / "t" / "64"
     folder.mkdir(parents=True)
     (folder / "cd.json").write_text(json.dumps({**row("cd", 1.0), "kind": "summary"}))
-    with pytest.raises(UsageError, match="expected a 'table-row' of version 1"):
+    with pytest.raises(UsageError, match="cd.json: kind 'summary'; expected a kept JSON of kind 'table-row'"):
+        table.load_rows(tmp_path / "t")
+    (folder / "cd.json").write_text(json.dumps({**row("cd", 1.0), "version": 2}))
+    with pytest.raises(UsageError, match="'table-row' of version 2; expected version 1, as `tax3d benchmark --keep`"):
         table.load_rows(tmp_path / "t")
 
 

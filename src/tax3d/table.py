@@ -9,10 +9,9 @@ the difference is "within noise".
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-from tax3d.errors import UsageError
+from tax3d import kept
 
 ROW_KIND, ROW_VERSION = "table-row", 1
 PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": "CD-NAC", "cp_nac": "CP-NAC",
@@ -28,10 +27,7 @@ def load_rows(folder: Path) -> dict[int, dict[str, dict]]:
     """{training demos: {paper key: row}} of a task's kept rows; a file of another kind or version is an error."""
     rows: dict[int, dict[str, dict]] = {}
     for path in sorted(folder.glob("*/*.json")) if folder.is_dir() else []:
-        row = json.loads(path.read_text())
-        if row.get("kind") != ROW_KIND or row.get("version") != ROW_VERSION:
-            raise UsageError(f"{path}: kind {row.get('kind')!r} version {row.get('version')!r}; expected a "
-                             f"{ROW_KIND!r} of version {ROW_VERSION}, as `tax3d benchmark --keep` writes")
+        row = kept.read(path, (ROW_KIND,))
         rows.setdefault(int(path.parent.name), {})[PAPER_KEYS[row["variant"]]] = row
     return rows
 
