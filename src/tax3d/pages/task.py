@@ -156,7 +156,7 @@ class TaskPage(Page):
                    for demos, key in [(int(Path(path).parent.name), table.PAPER_KEYS[Path(path).stem])]]
         ship = [f"Shipped: {', '.join(shipped)}, each with its model card.", ""] if shipped else []
         return [table.verdict(self.paper, rows), "", "## The paper's table under one protocol", "",
-                *table.markdown(self.spec["task"], self.paper, rows), *ship,
+                *table.markdown(self.spec["task"], self.paper, rows), *ship, *self.notes("table"),
                 *fold("How each row was made", table.commands(rows))]
 
     def markdown(self) -> str:
