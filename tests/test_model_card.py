@@ -184,7 +184,17 @@ def test_model_card_of_a_table_row_states_its_protocol_and_one_command(tmp_path,
     assert "| ood | 40 | 0.50 (0.35-0.65) | 0.85 |" in card
     assert "weights chosen on `val`: these are the run's best weights, validation RMSE 0.300 at step 20" in card
     assert "```bash\ntax3d benchmark --task hangproccloth-unimodal --variants cd" in card
+    assert "On the same episodes" not in card  # no floor or ceiling scored yet
     assert main(["results", "--root", str(root), "--check"]) == 0
+
+    # the floor and ceiling of the same table, once scored, bound the card's success
+    for key, unseen, ood in (("floor", 0.35, 0.3), ("ceiling", 0.9, 0.875)):
+        bound = table_row(None)
+        bound["splits"]["unseen"]["success_rate"], bound["splits"]["ood"]["success_rate"] = unseen, ood
+        (root / f"table/hangproccloth-unimodal/512/{key}.json").write_text(json.dumps({**bound, "variant": key}))
+    card = built(root, "tax3d-cd-x")
+    assert ("On the same episodes (unseen / ood), the mean goal of train (the floor) hangs 0.35 / 0.30 and each "
+            "demo's own goal (the ceiling) hangs 0.90 / 0.88.") in card
 
     # the checkpoint's weights must be the row's: another sha is a one-line error naming both
     (root / "table/hangproccloth-unimodal/512/cd.json").write_text(json.dumps(table_row("0" * 64)))

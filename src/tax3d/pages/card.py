@@ -152,8 +152,19 @@ def network_line(config: dict) -> str:
                if config["data"].get("grip_weight", 1.0) != 1.0 else ""))
 
 
-def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict) -> str:
-    """The card of weights shipped from a table row: its test episodes scored once, chosen on `val`, one command."""
+def bounds_line(row: dict, bounds: dict[str, dict]) -> list[str]:
+    """One sentence on what the policy hangs on the same test episodes with the floor's and the ceiling's goals."""
+    said = []
+    for key, what in (("floor", "the mean goal of train (the floor)"), ("ceiling", "each demo's own goal (the ceiling)")):
+        if key in bounds:
+            rates = " / ".join(f"{bounds[key]['splits'][split]['success_rate']:.2f}" for split in row["splits"])
+            said.append(f"{what} hangs {rates}")
+    return [f"On the same episodes ({' / '.join(row['splits'])}), {' and '.join(said)}.", ""] if said else []
+
+
+def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict, bounds: dict[str, dict] | None = None) -> str:
+    """The card of weights shipped from a table row: its test episodes scored once, chosen on `val`, one command;
+    `bounds` the floor and ceiling rows of the same table, where they have been scored."""
     task, key = row["task"], PAPER_KEYS[row["variant"]]
     name, paper = NAMES.get(key, key), paper_task.get("rows", {}).get(key)
     paper_demos = paper_task.get("demos", [None])[0]
@@ -193,6 +204,7 @@ def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict) -> str:
         "",
         *lines,
         "",
+        *bounds_line(row, bounds or {}),
         "## Training",
         "",
         network_line(config),
@@ -230,8 +242,10 @@ class CardsPage(Page):
                 if config.get("weights_sha256") != row["weights_sha256"]:
                     raise UsageError(f"{c['checkpoint']}/config.json: weights sha256 {config.get('weights_sha256')}; "
                                      f"expected {row['weights_sha256']}, the weights of the row {c['row']}")
-                out[folder / "README.md"] = row_card(c["checkpoint"], config, row,
-                                                     self.paper_all.get(row["task"], {})).encode()
+                bounds = {key: kept.read(path, ("table-row",)) for key in ("floor", "ceiling")
+                          if (path := (self.root / c["row"]).parent / f"{key}.json").is_file()}
+                out[folder / "README.md"] = row_card(c["checkpoint"], config, row, self.paper_all.get(row["task"], {}),
+                                                     bounds).encode()
                 continue
             summary = kept.load(self.root / c["eval"], ("eval",))
             records = kept.read(self.root / c["log"], ("train-log",))["records"] if c.get("log") else []
