@@ -141,3 +141,12 @@ def test_an_unknown_row_is_one_line_naming_the_rows(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--variants: unknown row 'bogus'" in err and "dp3, floor, ceiling" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "b").exists()
+
+
+def test_all_is_every_row_of_the_tasks_table(tmp_path):
+    from tax3d import benchmark
+
+    rows = benchmark._check(Args(task="hangproccloth-multimodal", variants="all", out=tmp_path / "m"))
+    assert rows == ["cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp", "rd", "rp", "dp3", "floor", "ceiling"]
+    rows = benchmark._check(Args(task="hangbag", variants="all", out=tmp_path / "b"))
+    assert "rd" not in rows and rows[-3:] == ["dp3", "floor", "ceiling"]

@@ -22,6 +22,14 @@ from tax3d.options import NonNegative, OutputFolder, Positive
 from tax3d.table import ROW_KIND, ROW_VERSION
 
 FIXED_GOALS = {"floor": "mean", "ceiling": "demo"}  # row: `tax3d eval --goal` (no network, nothing trained)
+REGRESSION = ("rd", "rp")  # the paper runs them on the multimodal task alone
+
+
+def table_rows(task: str) -> tuple[str, ...]:
+    """`--variants all`: the rows of the task's table in appendix D, then the floor and the ceiling."""
+    rows = ("cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp",
+            *(REGRESSION if task == "hangproccloth-multimodal" else ()), "dp3")
+    return (*rows, *FIXED_GOALS)
 
 
 
@@ -34,7 +42,8 @@ class Args:
     """comma-separated rows: cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd, rp, dp3 (the baseline, trained on the
     same demonstrations with their trajectories, for the same minutes; its last weights), and the fixed goals that
     bound the policy: floor (the mean goal of the train folder in the anchor frame) and ceiling (each episode's own
-    demonstrated goal), scored on the same test episodes without training"""
+    demonstrated goal), scored on the same test episodes without training; `all`: every row of the task's table in
+    appendix D (RD and RP on multimodal only) and both fixed goals"""
     out: Annotated[Path, OutputFolder] = Path("runs/benchmark")
     """output folder: data/<split>, <variant>/train, <variant>/eval, results.md"""
     preset: Literal["cpu", "cpu-multimodal", "paper"] | None = None
@@ -82,7 +91,7 @@ def _generate_data(args: Args) -> Path:
     num_train = args.num_train or task.sizes["train"]
     plan = [("train", "train", 0, num_train), ("val", "val", 0, args.num_val),
             ("unseen", "unseen", args.first_index, args.episodes), ("ood", "ood", args.first_index, args.episodes)]
-    if "dp3" in args.variants:
+    if "dp3" in args.variants or args.variants.strip() == "all":
         plan.append(("train", "train-traj", 0, num_train))  # the same demonstrations, with their trajectories
     for split, folder, first, num in plan:
         print(f"[benchmark] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / folder}",
@@ -210,10 +219,12 @@ def _check(args: Args) -> list[str]:
     if args.steps is not None and args.minutes > 0:
         raise UsageError(f"--steps {args.steps}: not with --minutes {args.minutes:g}; expected one budget")
     variants = [v.strip().lower().replace("-", "_") for v in args.variants.split(",") if v.strip()]
+    if variants == ["all"]:
+        variants = list(table_rows(args.task))
     rows = (*VARIANTS, "dp3", *FIXED_GOALS)
     unknown = [v for v in variants if v not in rows]
     if unknown:
-        raise UsageError(f"--variants: unknown row {unknown[0]!r}; expected some of {', '.join(rows)}")
+        raise UsageError(f"--variants: unknown row {unknown[0]!r}; expected some of {', '.join(rows)}, or all")
     if not variants:
         raise UsageError("--variants: expected at least one variant")
     if args.keep is not None:
