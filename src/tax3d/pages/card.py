@@ -88,15 +88,7 @@ def card(checkpoint: str, config: dict, records: list[dict], summary: dict, data
         "",
         f"A TAX3D-{variant.upper()} goal predictor (a diffusion transformer over per-point cross-displacements) for "
         f"`{task}`, trained on {source} with the `cpu` recipe of [docs/training.md](../../docs/training.md).",
-        "",
-        "```python",
-        "from tax3d import Tax3D",
-        f'model = Tax3D.from_pretrained("{checkpoint}")',
-        "goals = model.predict(action_points, anchor_points, num_samples=5)  # (5, N, 3), world frame",
-        "```",
-        "",
-        "## Results",
-        "",
+        *usage(checkpoint),
         f"`tax3d eval` on {summary['task']}, {summary['date']}, {summary['machine']}; the paper's figures from "
         f"its appendix D (docs/results/paper.toml):",
         "",
@@ -127,6 +119,13 @@ def card(checkpoint: str, config: dict, records: list[dict], summary: dict, data
         *limits(task, config),
     ]
     return "\n".join(lines)
+
+
+def usage(checkpoint: str) -> list[str]:
+    """How to load the checkpoint and predict, then the results heading."""
+    return ["", "```python", "from tax3d import Tax3D", f'model = Tax3D.from_pretrained("{checkpoint}")',
+            "goals = model.predict(action_points, anchor_points, num_samples=5)  # (5, N, 3), world frame", "```",
+            "", "## Results", ""]
 
 
 def limits(task: str, config: dict) -> list[str]:
@@ -188,15 +187,7 @@ def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict, bounds:
         f"{name} row of [its table](../../docs/results/{task}.md), trained on {row['num_train']} of this project's "
         f"demonstrations (the paper trains on {paper_demos}) with the `{row['preset']}` preset "
         f"([docs/training.md](../../docs/training.md)) for a {row['minutes']:g}-minute plan on one core.",
-        "",
-        "```python",
-        "from tax3d import Tax3D",
-        f'model = Tax3D.from_pretrained("{checkpoint}")',
-        "goals = model.predict(action_points, anchor_points, num_samples=5)  # (5, N, 3), world frame",
-        "```",
-        "",
-        "## Results",
-        "",
+        *usage(checkpoint),
         f"The test episodes, `unseen` and `ood` demo_{test['first_index']}-{test['first_index'] + test['episodes'] - 1}, "
         f"which no choice has touched, scored {scored} "
         f"with these weights and {test['samples']} goal samples an episode (the policy executes the first), "
