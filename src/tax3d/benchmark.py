@@ -91,7 +91,7 @@ def _generate_data(args: Args) -> Path:
     num_train = args.num_train or task.sizes["train"]
     plan = [("train", "train", 0, num_train), ("val", "val", 0, args.num_val),
             ("unseen", "unseen", args.first_index, args.episodes), ("ood", "ood", args.first_index, args.episodes)]
-    if "dp3" in args.variants or args.variants.strip() == "all":
+    if "dp3" in _rows(args):
         plan.append(("train", "train-traj", 0, num_train))  # the same demonstrations, with their trajectories
     for split, folder, first, num in plan:
         print(f"[benchmark] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / folder}",
@@ -209,6 +209,12 @@ def command() -> str:
             else "tax3d.benchmark")
 
 
+def _rows(args: Args) -> list[str]:
+    """--variants as row names (`CD-W` is cd_w), `all` expanded to the task's table."""
+    variants = [v.strip().lower().replace("-", "_") for v in args.variants.split(",") if v.strip()]
+    return list(table_rows(args.task)) if variants == ["all"] else variants
+
+
 def _check(args: Args) -> list[str]:
     from tax3d.devices import pick_device
     from tax3d.variants import VARIANTS
@@ -218,9 +224,7 @@ def _check(args: Args) -> list[str]:
     pick_device(args.device)  # a bad --device fails before any demonstration is generated
     if args.steps is not None and args.minutes > 0:
         raise UsageError(f"--steps {args.steps}: not with --minutes {args.minutes:g}; expected one budget")
-    variants = [v.strip().lower().replace("-", "_") for v in args.variants.split(",") if v.strip()]
-    if variants == ["all"]:
-        variants = list(table_rows(args.task))
+    variants = _rows(args)
     rows = (*VARIANTS, "dp3", *FIXED_GOALS)
     unknown = [v for v in variants if v not in rows]
     if unknown:

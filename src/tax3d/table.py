@@ -19,6 +19,7 @@ PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": 
 ORDER = ("CD", "CP", "CD-W", "CP-W", "CD-NAC", "CP-NAC", "SD", "SP", "RD", "RP", "DP3", "floor", "ceiling")
 FIXED = ("floor", "ceiling")  # no paper row: the policy with the mean goal of train, and with each demo's own goal
 PAPER_METRICS = {"rmse": "rmse", "coverage_rmse": "coverage", "precision_rmse": "precision"}  # ours: the paper's
+SPLITS = ("train", "unseen", "ood")  # the columns of the paper's rows
 NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP", "floor": "mean goal of train (the floor)",
          "ceiling": "each demo's own goal (the ceiling)"}
 
@@ -67,7 +68,8 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[s
                   "| row | success unseen | paper | success ood | paper | RMSE unseen | paper | RMSE ood | paper |",
                   "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
         # below the largest size only the rows run there (TAX3D-CD and -CP at the paper's count) are listed
-        for key in keys if demos == max(rows) else [k for k in keys if k in kept]:
+        listed = keys if demos == max(rows) else [k for k in keys if k in kept]
+        for key in listed:
             row, theirs = kept.get(key), paper_rows.get(key, {})
             rmse = theirs.get("rmse", (None, None, None))
             success = theirs.get("success", (None, None, None))
@@ -75,7 +77,7 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[s
                          f"{_success(row, 'ood')} | {cell(success[2], '.2f')} | {_rmse(row, 'unseen')} | "
                          f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} |")
         lines.append("")
-        lines += _goal_table(keys if demos == max(rows) else [k for k in keys if k in kept], kept, paper_rows)
+        lines += _goal_table(listed, kept, paper_rows)
     lines += conclusions(paper, rows)
     return lines
 
@@ -104,7 +106,7 @@ HOLDS, FAILS, NOISE, MISSING = "holds", "does not hold", "within noise", "not ru
 
 
 def _paper_success(paper_rows: dict, key: str, split: str) -> float:
-    return paper_rows[key]["success"][("train", "unseen", "ood").index(split)]
+    return paper_rows[key]["success"][SPLITS.index(split)]
 
 
 def _value(row: dict, split: str, metric: str):
@@ -121,7 +123,7 @@ def _check(kept: dict, paper_rows: dict, claim: dict, worse: str, than: str | No
         return MISSING, f"{NAMES.get(key, key)} {split}: {MISSING}"
     if than is None and metric != "success":  # `reaches` an error: ours at or below the paper's
         ours = row["splits"][split].get(metric)
-        theirs = paper_rows[key][PAPER_METRICS[metric]][("train", "unseen", "ood").index(split)]
+        theirs = paper_rows[key][PAPER_METRICS[metric]][SPLITS.index(split)]
         verdict = HOLDS if ours is not None and ours <= theirs + claim.get("margin", 0.0) + 1e-9 else FAILS
         return verdict, f"{NAMES.get(key, key)} {split} {cell(ours, '.3f')} (paper {theirs:.3f})"
     if than is None:  # `reaches`: our success against the paper's
@@ -167,8 +169,8 @@ def conclusions(paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
             metric = claim.get("metric", "success")
             test = (f"{metric.replace('_', ' ')} at or below the paper's" if "reaches" in claim and metric != "success"
                     else "at or above the paper's minus %.2f" % claim.get("margin", 0.0) if "reaches" in claim
-                    else "lower success" if claim.get("metric", "success") == "success"
-                    else f"{claim['metric'].replace('_', ' ')} over {claim.get('factor', 1.0):g}x")
+                    else "lower success" if metric == "success"
+                    else f"{metric.replace('_', ' ')} over {claim.get('factor', 1.0):g}x")
             numbers = "; ".join(text for v, text in checks if v != MISSING) or "-"
             table.append(f"| {claim['claim']} ({claim['where']}) | {test} | {numbers} | **{verdict}** |")
         if table:
