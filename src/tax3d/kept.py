@@ -77,11 +77,16 @@ def read(path: Path, kinds: tuple[str, ...] = ()) -> dict:
 
 
 def load(path: Path, kinds: tuple[str, ...] = ()) -> dict:
-    """What a page reads of a kept file: an evaluation's summary, a validation curve with its best and last step,
-    any other kind as written."""
+    """What a page reads of a kept file: an evaluation's summary, a validation curve or a table row with its best and
+    last validation, any other kind as written."""
     data = read(path, kinds)
     if data["kind"] == "eval":
         return data["summary"]
+    if data["kind"] == "table-row" and data.get("validations"):  # the floor and ceiling rows train nothing
+        vals = data["validations"]
+        best = min(vals, key=lambda v: v["val_rmse"])
+        return {**data, "best_step": best["step"], "best_rmse": best["val_rmse"], "last_step": vals[-1]["step"],
+                "last_rmse": vals[-1]["val_rmse"]}
     if data["kind"] == "train-log" and data["version"] >= 2:
         data = {**data, "points": curve(data["records"])}
     if data["kind"] not in ("val-curve", "train-log") or not data.get("points"):
