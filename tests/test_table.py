@@ -127,3 +127,15 @@ def test_multimodal_goals_beside_the_papers_coverage_and_precision(tmp_path):
     # the one-sentence verdict stays about success
     assert table.verdict(paper, rows).startswith("Under one protocol, with 512 training demonstrations 1 of TAX3D's 2 "
                                                  "success rates fall short of the paper's by 0.08 (")
+
+
+def test_a_page_reads_a_rows_best_and_last_validation(tmp_path):
+    from tax3d import kept
+
+    r = row("cd", 1.0)
+    r["validations"] = [{"step": 10, "val_rmse": 0.3}, {"step": 20, "val_rmse": 0.5}, {"step": 30, "val_rmse": 0.45}]
+    (tmp_path / "cd.json").write_text(json.dumps(r))
+    loaded = kept.load(tmp_path / "cd.json", ("table-row",))
+    assert (loaded["best_step"], loaded["best_rmse"], loaded["last_step"], loaded["last_rmse"]) == (10, 0.3, 30, 0.45)
+    (tmp_path / "floor.json").write_text(json.dumps({**r, "validations": []}))  # a fixed goal trains nothing
+    assert "best_step" not in kept.load(tmp_path / "floor.json", ("table-row",))
