@@ -82,17 +82,14 @@ def load(path: Path, kinds: tuple[str, ...] = ()) -> dict:
     data = read(path, kinds)
     if data["kind"] == "eval":
         return data["summary"]
-    if data["kind"] == "table-row" and data.get("validations"):  # the floor and ceiling rows train nothing
-        vals = data["validations"]
-        best = min(vals, key=lambda v: v["val_rmse"])
-        return {**data, "best_step": best["step"], "best_rmse": best["val_rmse"], "last_step": vals[-1]["step"],
-                "last_rmse": vals[-1]["val_rmse"]}
     if data["kind"] == "train-log" and data["version"] >= 2:
         data = {**data, "points": curve(data["records"])}
-    if data["kind"] not in ("val-curve", "train-log") or not data.get("points"):
+    points = data.get("validations") if data["kind"] == "table-row" else data.get("points")
+    if data["kind"] not in ("val-curve", "train-log", "table-row") or not points:  # floor and ceiling rows train nothing
         return data
-    best = min(data["points"], key=lambda p: p["val_rmse"])
-    return {**data, "best_step": best["step"], "best_rmse": best["val_rmse"], "last_step": data["points"][-1]["step"]}
+    best, last = min(points, key=lambda p: p["val_rmse"]), points[-1]
+    return {**data, "best_step": best["step"], "best_rmse": best["val_rmse"], "last_step": last["step"],
+            "last_rmse": last["val_rmse"]}
 
 
 def curve(records: list[dict]) -> list[dict]:
