@@ -37,6 +37,7 @@ from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
 from tax3d import kept
+from tax3d import provenance
 from tax3d.atomic import write_json
 from tax3d.checkpoint import STATE_NAME, find_last, read_log, read_weights, save_checkpoint, truncate_log
 from tax3d.data.dataset import DemoDataset, demo_files
@@ -517,12 +518,15 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
 
 
 def write_summary(out: Path, config: cfg.Config) -> None:
-    """OUT/summary.json: the log's plan, every validation and the last step, and what the validations were on."""
+    """OUT/summary.json: the log's plan, every validation and the last step, what the validations were on, and
+    where and when (with the command, when run as `tax3d train`)."""
     records = read_log(out / "log.jsonl")
     kept_records = [r for r in records if "plan" in r or "val_rmse" in r]
     if records and (not kept_records or kept_records[-1] is not records[-1]):
         kept_records.append(records[-1])
+    made = {"command": "tax3d train " + " ".join(sys.argv[2:])} if sys.argv[1:2] == ["train"] else {}
     write_json(out / "summary.json", kept.stamp("train-log", {
+        **made, "machine": provenance.machine(), "date": provenance.today(),
         "run": str(out), "variant": config.model.variant, "val": list(config.data.val),
         "val_demos": config.train.val_demos, "val_samples": config.train.val_samples, "steps": config.train.steps,
         "source": f"{out / 'log.jsonl'}: the plan, every validation and the last step", "records": kept_records}),
