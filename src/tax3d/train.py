@@ -341,6 +341,9 @@ def run(args: Args) -> int:
     distributed.check_batch_size(world, c.batch_size)
     if c.threads > 0:
         torch.set_num_threads(c.threads)
+    # Subnormal floats (below 1.2e-38) take the CPU's slow path; weights and gradients of some runs are full of them,
+    # and no value that size matters to training.
+    torch.set_flush_denormal(True)
     device = distributed.rank_device(world, c.device, pick_device(c.device))
     dtype = pick_precision(c.precision, device)
 
