@@ -341,8 +341,8 @@ def run(args: Args) -> int:
     distributed.check_batch_size(world, c.batch_size)
     if c.threads > 0:
         torch.set_num_threads(c.threads)
-    # Subnormal floats (below 1.2e-38) take the CPU's slow path; weights and gradients of some runs are full of them,
-    # and no value that size matters to training.
+    # Subnormal floats (below 1.2e-38) take the CPU's slow path; some runs fill with them and step at half speed
+    # (benchmarks/subnormal.py, docs/results/training/subnormal-multimodal-64.json). No value that size matters.
     torch.set_flush_denormal(True)
     device = distributed.rank_device(world, c.device, pick_device(c.device))
     dtype = pick_precision(c.precision, device)
