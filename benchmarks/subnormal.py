@@ -11,7 +11,6 @@ core, interleaving the two settings round by round. Prints one JSON object (kind
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -21,9 +20,9 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from train_step import demo_batches  # noqa: E402
+from train_step import demo_batches, emit  # noqa: E402
 from tax3d import config as cfg  # noqa: E402
-from tax3d import kept, provenance  # noqa: E402
+from tax3d import provenance  # noqa: E402
 from tax3d.model.tax3d import Tax3D  # noqa: E402
 from tax3d.train import TrainingLoss  # noqa: E402
 
@@ -66,10 +65,7 @@ def main(argv=None) -> int:
     result = {"command": "python benchmarks/subnormal.py " + " ".join(sys.argv[1:] if argv is None else argv),
               "machine": provenance.machine(), "date": provenance.today(), "threads": 1, "run": str(args.run),
               **timed_steps(args.run, args.train, args.rounds)}
-    text = json.dumps(kept.stamp("train-step-benchmark", result), indent=2)
-    if args.out:
-        args.out.write_text(text + "\n")
-    print(text)
+    emit(result, args.out)
     return 0
 
 

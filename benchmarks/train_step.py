@@ -204,6 +204,13 @@ def levers(config: cfg.Config, rounds: int) -> dict:
     return out
 
 
+def emit(result: dict, out: Path | None) -> None:
+    """Print the kept JSON (kind "train-step-benchmark") and, with --out, write it to that file as well."""
+    text = json.dumps(kept.stamp("train-step-benchmark", result), indent=2)
+    if out:
+        out.write_text(text + "\n")
+    print(text)
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--train", nargs="*", default=None, help="training demo folders (default: random clouds)")
@@ -234,10 +241,7 @@ def main(argv=None) -> int:
         result["top_ops"] = top_ops(first)
         result["two_threads"] = threads(first, args.rounds)
     result["peaks_again"] = {"fp32": matmul_peak(torch.float32), "bf16": matmul_peak(torch.bfloat16)}
-    text = json.dumps(kept.stamp("train-step-benchmark", result), indent=2)
-    if args.out:
-        args.out.write_text(text + "\n")
-    print(text)
+    emit(result, args.out)
     return 0
 
 

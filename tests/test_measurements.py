@@ -106,3 +106,20 @@ def test_time_to_quality_collect_keeps_the_training_loss_between_validations(tmp
     assert [(p["step"], p["minutes"], p["train_mse"]) for p in curve] == [(2, 0.5, 6.0), (4, 2.0, 2.0)]
 
 
+
+
+def test_subnormal(tmp_path):
+    """benchmarks/subnormal.py times a run's own loss with and without subnormal floats and keeps what it measured."""
+    from tests.conftest import tiny_model, write_demos
+
+    run, data, out = tmp_path / "last", tmp_path / "demos", tmp_path / "subnormal.json"
+    tiny_model().save_pretrained(run)
+    write_demos(data, 2)
+    script = str(ROOT / "benchmarks" / "subnormal.py")
+    done = subprocess.run([sys.executable, script, "--run", str(run), "--train", str(data), "--rounds", "2",
+                           "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    kept = json.loads(out.read_text())
+    assert kept["kind"] == "train-step-benchmark" and kept["rounds"] == 2
+    assert all(t > 0 for t in kept["forward_backward_seconds"].values()) and kept["speedup_flushed"] > 0
+    refused([script, "--run"], tmp_path / "missing", "no config.json", "--train", str(data))
