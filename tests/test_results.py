@@ -384,14 +384,17 @@ def measurement_json() -> dict[str, dict]:
                               "samplers": {"ddpm_100": sampler(0.125), "ddim_10": sampler(0.375)}},
         "model_benchmark.json": {**PROV, "command": "python benchmarks/model.py", "matmul_peak_gflops": 100.0,
                                  "train_step": {"config": "paper", "seconds": 1.0, "gflop": 50.0, "gflops": 50.0,
-                                                "fraction_of_peak": 0.5}, "predict": predict},
-        "large_clouds_benchmark.json": {**PROV, "command": "python benchmarks/model.py --parts large", "large_clouds": {
+                                                "fraction_of_peak": 0.5}},
+        "predict_benchmark.json": {**PROV, "command": "python benchmarks/model.py --parts predict,large",
+                                   "predict": predict, "large_clouds": {
             "action_points": 20000, "network_points": 256, "latency_s": 0.25, "demos": 8, "samples_per_demo": 2,
             "rmse_sampled": 0.25, "rmse_every_point": 0.2, "rmse_ratio_sampled_vs_every_point": 1.25}},
-        "official_training.json": {"command": "tax3d train --out runs/o", "log": "runs/o/log.jsonl",
-                                   "resumed_with": "--train.steps 800 --train.time-limit 50",
-                                   "first_plan_steps": 900, "stopped_at_step": 300, "training_minutes": 45,
-                                   "best_step": 600, "machine": "fixture machine"},
+        "official_training.json": {**PROV, "command": "tax3d train --preset cpu --out runs/o", "run": "runs/o",
+                                   "variant": "cd", "val": ["v"], "val_demos": 4, "val_samples": 2, "steps": 900,
+                                   "source": "runs/o/log.jsonl", "records": [
+                                       {"step": 300, "val_rmse": 0.5, "seconds": 600.0},
+                                       {"step": 600, "val_rmse": 0.25, "seconds": 1200.0},
+                                       {"step": 900, "val_rmse": 0.375, "seconds": 1800.0}]},
         "training/ttq-1.json": study({"a": [(14, 2.0), (29, 1.5), (61, 0.9)], "b": [(20, 1.2), (65, 0.7)],
                                       "shipped": [(30, 1.2), (62, 0.6)]}),
         "training/ttq-5.json": {**study({"v-loss-30min": [(8, 1.9), (15, 1.6), (22, 1.5), (30, 1.25)]}),
@@ -469,13 +472,13 @@ def measurement_json() -> dict[str, dict]:
                                                      "real_clouds": {"clouds": 8, "same_indices": 3}},
                                         "numpy_real_clouds": {"clouds": 8, "same_indices": 8}},
         "../../checkpoints/tax3d-cd-official-simple/config.json": {"model": {}, "diffusion": {}, "data": {}, "train": {
-            "steps": 800, "time_limit": 50.0, "val_demos": 4, "val_samples": 2, "val_every": 100}},
+            "steps": 900, "minutes": 30.0, "val_demos": 4, "val_samples": 2, "val_every": 300}},
     }
 
 
 KINDS = {"fidelity.json": "fidelity", "expert_rates": "expert-rates", "sim_benchmark": "sim-benchmark",
-         "official_val.json": "official-val", "official_training.json": "train-run",
-         "model_benchmark": "model-benchmark", "large_clouds": "model-benchmark", "precision_benchmark": "model-benchmark", "fps_benchmark": "fps-benchmark",
+         "official_val.json": "official-val", "official_training.json": "train-log",
+         "model_benchmark": "model-benchmark", "predict_benchmark": "model-benchmark", "precision_benchmark": "model-benchmark", "fps_benchmark": "fps-benchmark",
          "ttq-": "study", "evals/": "eval", "unimodal-floor-20": "predict", "-samplers-": "predict"}
 
 
@@ -514,7 +517,9 @@ def test_measurement_pages_from_fixture_json(measured):
     official = (measured / "official-simple.md").read_text()
     assert "TAX3D-CD predicts goals 0.125 RMSE from the official `val` goals, against the paper's 0.255" in official
     assert "| TAX3D-CD, this checkpoint, 10-step DDIM | 0.375 | 0.188 |" in official
-    assert "stopped at step 300 of 900 and resumed with `--train.steps 800 --train.time-limit 50`" in official
+    assert ("`tax3d train --preset cpu --out runs/o` on fixture machine, 2026-02-03 (log not committed" in official
+            and "a 30-minute plan on one core beside another run, 900 steps" in official
+            and "(0.250, best of 2 samples) on the first 4 official `val` demos, reached at step 600" in official)
     assert "(per sample: 0.125, 0.125)" in official
     assert "| speed-up, 10-step DDPM over 100-step | **10.0x** |" in official
     assert "| prediction of 20,000 action points, network on 256, 10-step DDPM | 0.25 s |" in official
@@ -563,7 +568,8 @@ def test_measurement_pages_from_fixture_json(measured):
     ("fidelity.json", '"expert_success": 0.5', '"expert_success": 0.625', "hangproccloth-sim.md"),
     ("sim_benchmark.json", '"sim_steps_per_second": 640.0', '"sim_steps_per_second": 650.0', "hangproccloth-sim.md"),
     ("official_val.json", '"demos": 8', '"demos": 9', "official-simple.md"),
-    ("model_benchmark.json", '"speedup_10_vs_100": 10.0', '"speedup_10_vs_100": 9.0', "official-simple.md"),
+    ("predict_benchmark.json", '"speedup_10_vs_100": 10.0', '"speedup_10_vs_100": 9.0', "official-simple.md"),
+    ("model_benchmark.json", '"seconds": 1.0', '"seconds": 2.0', "official-simple.md"),
     ("training/ttq-1.json", '"val_rmse": 0.7', '"val_rmse": 0.75', "training.md")])
 def test_check_names_a_measurement_page_whose_json_changed(measured, capsys, rel, old, new, page):
     assert main(["results", "--root", str(measured)]) == 0
@@ -577,7 +583,7 @@ def test_check_names_a_measurement_page_whose_json_changed(measured, capsys, rel
 
 
 @pytest.mark.parametrize("rel", ["sim_benchmark_hangbag.json", "official_training.json", "model_benchmark.json",
-                                 "large_clouds_benchmark.json",
+                                 "predict_benchmark.json",
                                  "training/unimodal-floor-20.json", "training/ttq-5.json",
                                  "training/ttq-6.json"])
 def test_missing_measurement_json_is_a_one_line_error(measured, capsys, rel):

@@ -1,5 +1,6 @@
 """docs/results/official-simple.md (`kind = "official"`): the official-data checkpoint's RMSE on the official `val`
-split and its speed; sources `val`, `bench`, `run` and optional `large`, by id."""
+split and its speed; sources `val` (the RMSE), `bench` (a training step), `pred` (the checkpoint's prediction: speed,
+samplers, large clouds) and `run` (its training), by id."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ class OfficialPage(MeasurementPage):
         val["per_sample"] = ", ".join(f"{x:.3f}" for x in val["samplers"]["ddpm_100"]["rmse_per_sample_index"])
 
     def markdown(self) -> str:
-        val, bench = self.data["val"], self.data["bench"]
+        val, bench, pred = self.data["val"], self.data["bench"], self.data["pred"]
         ddpm, ddim = val["samplers"]["ddpm_100"], val["samplers"]["ddim_10"]
         paper = self.paper["rows"]["CD"]["rmse"][1]
         lines = [f"# {self.spec['title']}", "", self.verdict(), "",
@@ -31,13 +32,13 @@ class OfficialPage(MeasurementPage):
                  f"{val['mean_goal_baseline_rmse']:.3f} | - |", "",
                  f"Measured by {provenance(val)}, checkpoint `{val['checkpoint']}` "
                  "([official_val.json](official_val.json)).", "", *self.notes("rmse")]
-        lines += ["## Speed", "", *self.speed(bench), "",
-                  f"Measured by {provenance(bench)}, nothing else running "
-                  "([model_benchmark.json](model_benchmark.json) holds the full output).", "", *self.notes("speed")]
-        if "large" in self.data:
-            lines += ["## Depth-camera-sized clouds", "", *self.large(self.data["large"]["large_clouds"]), "",
-                      f"Measured by {provenance(self.data['large'])} "
-                      "([large_clouds_benchmark.json](large_clouds_benchmark.json)).", "", *self.notes("large")]
+        lines += ["## Speed", "", *self.speed(pred["predict"], bench), "",
+                  f"Prediction measured by {provenance(pred)} ([predict_benchmark.json](predict_benchmark.json)); "
+                  f"the training step by {provenance(bench)}, nothing else running "
+                  "([model_benchmark.json](model_benchmark.json)).", "", *self.notes("speed")]
+        lines += ["## Depth-camera-sized clouds", "", *self.large(pred["large_clouds"]), "",
+                  f"Measured by {provenance(pred)} ([predict_benchmark.json](predict_benchmark.json)).", "",
+                  *self.notes("large")]
         lines += self.details()
         return "\n".join(lines).rstrip() + "\n"
 
@@ -57,8 +58,8 @@ class OfficialPage(MeasurementPage):
         return lines
 
     @staticmethod
-    def speed(bench: dict) -> list[str]:
-        train, cpu, pred = bench["train_step"], bench.get("train_step_cpu_preset", {}), bench.get("predict", {})
+    def speed(pred: dict, bench: dict) -> list[str]:
+        train, cpu = bench["train_step"], bench.get("train_step_cpu_preset", {})
         lines = ["| measure | value |", "| --- | --- |"]
         if "ddpm_100" in pred:
             lines += [f"| prediction, {pred['action_points']} action points, 100-step DDPM | "
