@@ -117,7 +117,8 @@ class TaskPage(Page):
             lines.append(f"- curve **{c['label']}** ([{c['summary']}]({c['summary']})): the run `{d['run']}`.")
         for s in self.spec.get("source", []):
             d = self.data[s["id"]]
-            lines.append(f"- {s['label']} ([{s['summary']}]({s['summary']})): {shown(d['command'])}, {d['date']}.")
+            how = shown(d["command"]) if "command" in d else f"the run `{d['run']}`"  # a run's summary.json
+            lines.append(f"- {s['label']} ([{s['summary']}]({s['summary']})): {how}, {d['date']}.")
         return lines
 
     def timings(self) -> list[str]:
