@@ -4,7 +4,7 @@ lever's runs side by side at equal wall time."""
 from __future__ import annotations
 
 from tax3d.pages.measurement import MeasurementPage
-from tax3d.pages.page import provenance
+from tax3d.pages.page import fold, provenance
 
 
 class SpeedPage(MeasurementPage):
@@ -69,7 +69,8 @@ class SpeedPage(MeasurementPage):
                 low, high = split["success_ci95"]
                 lines.append(f"| {p['label']} | {split['success_rate']:.2f} ({low:.2f}-{high:.2f}) | {split['rmse']:.3f} "
                              f"| `{p['weights_sha256'][:12]}` |")
-            lines += ["", *[f"- {p['label']}: {provenance(p)} ([{p['file']}]({p['file']}))." for p in policy], ""]
+            lines += ["", *fold("How each policy row was measured",
+                                [f"- {p['label']}: {provenance(p)} ([{p['file']}]({p['file']}))." for p in policy])]
         lines += self.notes("pairs")
         lines += self.details()
         return "\n".join(lines).rstrip() + "\n"
