@@ -48,7 +48,14 @@ class SpeedPage(MeasurementPage):
         for pair in self.sources("pair"):
             runs = pair["runs"]
             marks = max(len(r["curve"]) for r in runs.values())
-            lines += [f"**{pair['label']}** ({pair['minutes']:g}-minute plans, one core each, started together; "
+            plans = sorted({r["plan"]["minutes"] for r in runs.values() if r.get("plan")} or {pair["minutes"]})
+            if len(runs) == 1:
+                how = f"a {plans[0]:g}-minute plan on one core"
+            elif len(plans) == 1:
+                how = f"{plans[0]:g}-minute plans, one core each, started together"
+            else:
+                how = f"plans of {' and '.join(f'{m:g}' for m in plans)} minutes, one core each, started together"
+            lines += [f"**{pair['label']}** ({how}; "
                       f"validation RMSE on the first {pair['val_demos']} demos of `{' '.join(pair['val'])}`, best of "
                       f"{pair['val_samples']} samples):", "",
                       "| run | steps | steps per minute | " + " | ".join(f"validation {i + 1}" for i in range(marks))
