@@ -615,3 +615,36 @@ def test_the_readme_row_is_the_protocols_cd_once_it_is_run(root):
     assert readme_row().startswith("| Fixture | 0.88 (0.74-0.95) / 0.88 (0.74-0.95) (TAX3D-CD, 512 demos, "
                                    "`--preset cpu`, 60-minute plan; weights chosen on `val`, test scored once) | "
                                    "0.90 / 0.85 |")
+
+
+@pytest.fixture
+def speed_root(tmp_path: Path) -> Path:
+    """docs/results/ with the speed page's declaration and the kept JSON it reads."""
+    root = tmp_path / "docs" / "results"
+    (root / "pages").mkdir(parents=True)
+    shutil.copy(RESULTS / "paper.toml", root / "paper.toml")
+    spec = (RESULTS / "pages" / "training-speed.toml").read_text()
+    (root / "pages" / "training-speed.toml").write_text(spec)
+    for source in tomllib.loads(spec)["source"]:
+        (root / source["summary"]).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(RESULTS / source["summary"], root / source["summary"])
+    return root
+
+
+def test_speed_page_plots_the_named_pairs_curves(speed_root, capsys):
+    assert main(["results", "training-speed", "--root", str(speed_root)]) == 0
+    spec = tomllib.loads((speed_root / "pages" / "training-speed.toml").read_text())
+    drawn = plots.drawn_from((speed_root / "training-speed.png").read_bytes())
+    pairs = {s["id"]: s for s in spec["source"]}
+    expected = [f"{i}: {name}" for i in spec["plot"]
+                for name in json.loads((speed_root / pairs[i]["summary"]).read_text())["runs"]]
+    assert [run[0] for run in drawn["runs"]] == expected and len(expected) >= 2
+    page = (speed_root / "training-speed.md").read_text()
+    assert "![validation RMSE against training minutes](training-speed.png)" in page.split("## Where a step goes")[0]
+
+
+def test_speed_page_plot_of_an_unknown_pair_is_a_one_line_error(speed_root, capsys):
+    toml = speed_root / "pages" / "training-speed.toml"
+    toml.write_text(re.sub(r'^plot = \[.*\]$', 'plot = ["nope"]', toml.read_text(), flags=re.M))
+    one_line_error(capsys, ["results", "training-speed", "--root", speed_root], "training-speed.toml: plot names nope")
+    assert not (speed_root / "training-speed.md").exists()

@@ -3,19 +3,29 @@ lever's runs side by side at equal wall time."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from tax3d.pages import plots
 from tax3d.pages.measurement import MeasurementPage
+from tax3d.errors import UsageError
 from tax3d.pages.page import fold, provenance
 
 
 class SpeedPage(MeasurementPage):
     """docs/results/training-speed.md: where a CPU training step goes, the speed levers, and each lever's runs side
     by side at equal wall time (sources: `table = "profile"`, a benchmarks/train_step.py JSON, and `table = "pair"`,
-    benchmarks/time_to_quality.py JSON)."""
+    benchmarks/time_to_quality.py JSON). `plot` names the pairs whose validation curves the page's plot draws."""
 
     def markdown(self) -> str:
         profile = self.sources("profile")[0]
         peaks = profile["matmul_peak_flops"]
-        lines = [f"# {self.spec['title']}", "", self.verdict(), "", "## Where a step goes", "",
+        lines = [f"# {self.spec['title']}", "", self.verdict(), ""]
+        if self.spec.get("plot"):
+            lines += [f"![validation RMSE against training minutes]({self.name}.png)", "",
+                      "Validation RMSE against training minutes, one core a run: "
+                      + "; ".join(f"{p['id']}, {p['label']} (trained on `{' '.join(p['train'])}`)" for p in self._plotted())
+                      + ".", ""]
+        lines += ["## Where a step goes", "",
                  f"One training step on one core ({profile['threads']} torch thread), the median of the measured "
                  f"steps; the core's matmul peak measured in the same run: {peaks['fp32'] / 1e9:.0f} GFLOP/s in "
                  f"float32, {peaks['bf16'] / 1e9:.0f} GFLOP/s in bfloat16.", "",
@@ -81,3 +91,24 @@ class SpeedPage(MeasurementPage):
         lines += self.notes("pairs")
         lines += self.details()
         return "\n".join(lines).rstrip() + "\n"
+
+    def _plotted(self) -> list[dict]:
+        pairs = {s["id"]: s for s in self.spec.get("source", []) if s.get("table") == "pair"}
+        unknown = [i for i in self.spec["plot"] if i not in pairs]
+        if unknown:
+            raise UsageError(f"{self.name}.toml: plot names {', '.join(unknown)}; expected ids of its "
+                             f"`table = \"pair\"` sources ({', '.join(pairs)})")
+        return [self.data[i] | {"id": i, "label": pairs[i]["label"]} for i in self.spec["plot"]]
+
+    def plot(self) -> bytes:
+        pairs = self._plotted()
+        runs = [(f"{p['id']}: {name}", [c["minutes"] for c in r["curve"]], [c["val_rmse"] for c in r["curve"]])
+                for p in pairs for name, r in p["runs"].items()]
+        demos = sorted({p["val_demos"] for p in pairs})
+        return plots.validation_curves(runs, None, f"validation RMSE ({'/'.join(map(str, demos))} val demos)")
+
+    def files(self) -> dict[Path, bytes]:
+        out = super().files()
+        if self.spec.get("plot"):
+            out[self.root / f"{self.name}.png"] = self.plot()
+        return out
