@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# The paper's table (docs/results/table/TASK/NUM/ROW.json): every row not yet kept, two at a time, one core each.
+#
+#   bash scripts/table.sh            # all missing rows, in the order below
+#   bash scripts/table.sh --dry-run  # only list them
+#
+# Each row is one `tax3d benchmark` command (60 minutes of training on one core, its weights chosen on val, its
+# test episodes scored once); a killed row resumes from runs/table/.../last when run again. A task's
+# demonstrations are generated once, with both cores, before its first row (data/<folder>, skipped when present).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+TAX3D=${TAX3D:-.venv/bin/tax3d}
+MINUTES=60
+
+# task, training demos, data folder, rows: the headline rows, the fixed goals, then the ablations and DP3
+ROWS="
+hangproccloth-simple 16 simple cd cp floor ceiling cd_w cp_w dp3 cd_nac cp_nac sd sp
+hangbag 16 hangbag cd cp floor ceiling cd_w cp_w dp3 cd_nac cp_nac sd sp
+hangproccloth-unimodal 512 unimodal cd cp floor ceiling cd_w cp_w cd_nac cp_nac sd sp dp3
+hangproccloth-unimodal 64 unimodal cd cp
+hangproccloth-multimodal 512 multimodal cd cp floor ceiling cd_w cp_w rd rp cd_nac cp_nac sd sp dp3
+hangproccloth-multimodal 64 multimodal cd cp
+"
+
+missing() {  # one line per row without kept JSON: task num folder row
+  echo "$ROWS" | while read -r task num folder rows; do
+    [ -n "$task" ] || continue
+    for row in $rows; do
+      [ -f "docs/results/table/$task/$num/$row.json" ] || echo "$task $num $folder $row"
+    done
+  done
+}
+
+data() {  # task num folder dp3?: the demonstrations `tax3d benchmark` would make, made with both cores
+  local task=$1 num=$2 dir=data/$3 g="$TAX3D generate --task $1 --workers 2"
+  $g --split train --num "$num" --out "$dir/train"
+  $g --split val --num 40 --out "$dir/val"
+  $g --split unseen --first-index 100 --num 40 --out "$dir/unseen"
+  $g --split ood --first-index 100 --num 40 --out "$dir/ood"
+  if [ "$4" = dp3 ]; then $g --split train --num "$num" --trajectories --out "$dir/train-traj"; fi
+}
+
+row() {  # task num folder row
+  local task=$1 num=$2 folder=$3 row=$4 log=runs/logs/$1-$2-$4.log
+  mkdir -p runs/logs data
+  flock "data/.$folder.lock" bash -c 'data "$@"' data "$task" "$num" "$folder" "$row" >> "$log" 2>&1
+  echo "$(date -u +%FT%TZ) start $task $num $row"
+  "$TAX3D" benchmark --task "$task" --variants "$row" --num-train "$num" --minutes $MINUTES \
+    --data "data/$folder" --out "runs/table/$task-$num" --keep "docs/results/table/$task/$num" --workers 1 \
+    >> "$log" 2>&1 && echo "$(date -u +%FT%TZ) done $task $num $row" \
+    || echo "$(date -u +%FT%TZ) FAILED $task $num $row (see $log)"
+}
+
+if [ "${1:-}" = --dry-run ]; then missing; exit 0; fi
+export TAX3D MINUTES
+export -f row data
+missing | xargs -P 2 -L 1 bash -c 'row "$@"' row
