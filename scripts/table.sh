@@ -2,7 +2,7 @@
 # The paper's table (docs/results/table/TASK/NUM/ROW.json): every row not yet kept, two at a time, one core each.
 #
 #   bash scripts/table.sh            # all missing rows, in the order below
-#   bash scripts/table.sh --dry-run  # only list them
+#   bash scripts/table.sh --dry-run  # only print their commands
 #
 # Each row is one `tax3d benchmark` command (60 minutes of training on one core, its weights chosen on val, its
 # test episodes scored once); a killed row resumes from runs/table/.../last when run again. A task's
@@ -40,18 +40,25 @@ data() {  # task num folder dp3?: the demonstrations `tax3d benchmark` would mak
   if [ "$4" = dp3 ]; then $g --split train --num "$num" --trajectories --out "$dir/train-traj"; fi
 }
 
-row() {  # task num folder row
-  local task=$1 num=$2 folder=$3 row=$4 log=runs/logs/$1-$2-$4.log
-  mkdir -p runs/logs data
-  flock "data/.$folder.lock" bash -c 'data "$@"' data "$task" "$num" "$folder" "$row" >> "$log" 2>&1
-  echo "$(date -u +%FT%TZ) start $task $num $row"
-  "$TAX3D" benchmark --task "$task" --variants "$row" --num-train "$num" --minutes $MINUTES \
-    --data "data/$folder" --out "runs/table/$task-$num" --keep "docs/results/table/$task/$num" --workers 1 \
-    >> "$log" 2>&1 && echo "$(date -u +%FT%TZ) done $task $num $row" \
-    || echo "$(date -u +%FT%TZ) FAILED $task $num $row (see $log)"
+benchmark() {  # task num folder row: the row's command, as its kept JSON records it
+  echo "benchmark --task $1 --variants $4 --num-train $2 --minutes $MINUTES --data data/$3 --out runs/table/$1-$2" \
+    "--keep docs/results/table/$1/$2 --workers 1"
 }
 
-if [ "${1:-}" = --dry-run ]; then missing; exit 0; fi
+row() {  # task num folder row
+  local log=runs/logs/$1-$2-$4.log
+  mkdir -p runs/logs data
+  flock "data/.$3.lock" bash -c 'data "$@"' data "$@" >> "$log" 2>&1
+  echo "$(date -u +%FT%TZ) start $*"
+  # shellcheck disable=SC2046  # the command's words hold no spaces
+  "$TAX3D" $(benchmark "$@") >> "$log" 2>&1 && echo "$(date -u +%FT%TZ) done $*" \
+    || echo "$(date -u +%FT%TZ) FAILED $* (see $log)"
+}
+
+if [ "${1:-}" = --dry-run ]; then
+  missing | while read -r line; do echo "tax3d $(benchmark $line)"; done
+  exit 0
+fi
 export TAX3D MINUTES
-export -f row data
+export -f row data benchmark
 missing | xargs -P 2 -L 1 bash -c 'row "$@"' row

@@ -139,3 +139,37 @@ def test_a_page_reads_a_rows_best_and_last_validation(tmp_path):
     assert (loaded["best_step"], loaded["best_rmse"], loaded["last_step"], loaded["last_rmse"]) == (10, 0.3, 30, 0.45)
     (tmp_path / "floor.json").write_text(json.dumps({**r, "validations": []}))  # a fixed goal trains nothing
     assert "best_step" not in kept.load(tmp_path / "floor.json", ("table-row",))
+
+
+def test_the_table_script_runs_every_row_of_each_task_with_the_command_its_kept_rows_record(tmp_path):
+    import shutil
+    import subprocess
+
+    from tax3d.benchmark import table_rows
+
+    def dry_run(root):
+        (root / "scripts").mkdir(parents=True, exist_ok=True)
+        shutil.copy(ROOT / "scripts" / "table.sh", root / "scripts" / "table.sh")
+        out = subprocess.run(["bash", str(root / "scripts" / "table.sh"), "--dry-run"], capture_output=True,
+                             text=True, check=True).stdout
+        return out.splitlines()
+
+    commands = dry_run(tmp_path)  # nothing kept: every row
+    rows = {}
+    for line in commands:
+        words = line.split()
+        rows.setdefault((words[words.index("--task") + 1], int(words[words.index("--num-train") + 1])), []).append(
+            words[words.index("--variants") + 1])
+    sizes = {task: max(num for t, num in rows if t == task) for task, _ in rows}
+    assert set(sizes) == {"hangproccloth-simple", "hangproccloth-unimodal", "hangproccloth-multimodal", "hangbag"}
+    for task, num in sizes.items():
+        assert sorted(rows[task, num]) == sorted(table_rows(task))  # the whole table at the task's chosen size
+    assert rows["hangproccloth-unimodal", 64] == rows["hangproccloth-multimodal", 64] == ["cd", "cp"]
+    kept = sorted((ROOT / "docs" / "results" / "table").glob("*/*/*.json"))
+    assert kept and all(json.loads(p.read_text())["command"] in commands for p in kept)
+
+    done = tmp_path / "docs" / "results" / "table" / "hangbag" / "16" / "cd.json"
+    done.parent.mkdir(parents=True)
+    done.write_text("{}")
+    left = dry_run(tmp_path)  # a kept row is not run again
+    assert len(left) == len(commands) - 1 and not any("--task hangbag --variants cd " in c for c in left)
