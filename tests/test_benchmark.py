@@ -150,3 +150,28 @@ def test_all_is_every_row_of_the_tasks_table(tmp_path):
     assert rows == ["cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp", "rd", "rp", "dp3", "floor", "ceiling"]
     rows = benchmark._check(Args(task="hangbag", variants="all", out=tmp_path / "b"))
     assert "rd" not in rows and rows[-3:] == ["dp3", "floor", "ceiling"]
+
+
+def test_a_kept_row_is_not_trained_or_scored_again_when_out_is_gone(tmp_path, monkeypatch, capsys):
+    from tax3d import evaluate
+    from tax3d.errors import UsageError
+
+    monkeypatch.setattr(evaluate, "evaluate", lambda a, progress=True: pytest.fail("a kept row is scored once"))
+    monkeypatch.setattr(train, "run", lambda a: pytest.fail("a kept row is trained once"))
+    monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: {"failed": []})
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    split = {"episodes": 1, "success_rate": 1.0, "success_ci95": [0.2, 1.0], "rmse": 0.5, "coverage_rmse": None,
+             "precision_rmse": None}
+    kept = {"kind": "table-row", "task": "hangbag", "variant": "cd", "num_train": 16, "test": {"scorings": 1},
+            "splits": {"unseen": split, "ood": split}}
+    (keep / "cd.json").write_text(json.dumps(kept))
+    args = Args(task="hangbag", variants="cd", out=tmp_path / "fresh", num_train=16, episodes=1,
+                data=tmp_path / "data", keep=keep)
+    assert run(args) == 0  # OUT never held the row (a fresh machine): the kept summary stands
+    assert "kept in" in capsys.readouterr().out and json.loads((keep / "cd.json").read_text()) == kept
+
+    args.num_train = 64  # the kept row belongs to another size: refused before any demonstration is made
+    monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: pytest.fail("refused first"))
+    with pytest.raises(UsageError, match=r"^--keep .*cd.json holds the row of hangbag with --num-train 16; expected"):
+        run(args)

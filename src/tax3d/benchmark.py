@@ -3,7 +3,7 @@
 Every row (a variant) trains on the same demonstrations with the same preset and budget, keeps the weights that
 validate best on the `val` split, and is then scored once on the test episodes: `unseen` and `ood` demos from
 TEST_FIRST_INDEX on, which no choice has touched. A finished row's summary is written at once (to --keep too),
-and a rerun skips what is there: a row is never trained or scored again unless --rescore asks.
+and a rerun skips what is there, in OUT or in --keep: a row is never trained or scored again unless --rescore asks.
 """
 
 from __future__ import annotations
@@ -67,7 +67,8 @@ class Args:
     data: Path | None = None
     """demonstrations with one folder per split, completed here where demos are missing (default: OUT/data)"""
     keep: Path | None = None
-    """also write each scored row's summary here, as VARIANT.json (a folder of the repository, say)"""
+    """also write each scored row's summary here, as VARIANT.json (a folder of the repository, say); a row kept
+    here is not trained or scored again, even where OUT is gone"""
     rescore: bool = False
     """score rows on the test episodes again even where they have been (the count is kept in the summary)"""
     device: str = "auto"
@@ -165,6 +166,19 @@ def _only(cls, **values) -> dict:
     return {k: v for k, v in values.items() if k in names and v is not None}
 
 
+def _kept(args: Args, variant: str) -> dict | None:
+    """The row's summary in --keep, where OUT has lost it (a fresh machine, OUT deleted): it counts as scored."""
+    path = None if args.keep is None else args.keep / f"{variant}.json"
+    if path is None or not path.is_file():
+        return None
+    row = json.loads(path.read_text())
+    if (row.get("task"), row.get("num_train")) != (args.task, args.num_train):
+        raise UsageError(f"--keep {args.keep}: {path.name} holds the row of {row.get('task')} with --num-train "
+                         f"{row.get('num_train')}; expected {args.task} with --num-train {args.num_train}, or "
+                         f"another --keep folder")
+    return row
+
+
 def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dict:
     """The row's summary: scored on the test episodes now, or read back when it has been (unless --rescore)."""
     from tax3d.checkpoint import read_log
@@ -172,7 +186,7 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
     from tax3d.evaluate import evaluate
 
     path = args.out / variant / "row.json"
-    row = json.loads(path.read_text()) if path.is_file() else None
+    row = json.loads(path.read_text()) if path.is_file() else _kept(args, variant)
     if row is not None and not args.rescore:
         return row
     print(f"[benchmark] scoring {variant} ({checkpoint or 'a fixed goal'}) on the test episodes", flush=True)
@@ -233,6 +247,8 @@ def _check(args: Args) -> list[str]:
         raise UsageError("--variants: expected at least one variant")
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
+        for variant in variants:
+            _kept(args, variant)  # a kept row of another task or size fails here, before any long work
     return variants
 
 
@@ -243,6 +259,12 @@ def run(args: Args) -> int:
     data = _generate_data(args)
     tables = {}
     for variant in variants:
+        kept = None if args.rescore or (args.out / variant / "row.json").is_file() else _kept(args, variant)
+        if kept is not None:
+            print(f"[benchmark] {variant}: kept in {args.keep}, not trained or scored again (--rescore to score it)",
+                  flush=True)
+            tables[variant] = kept["splits"]
+            continue
         checkpoint = None if variant in FIXED_GOALS else _train(args, variant, data)
         tables[variant] = _score(args, variant, checkpoint, data)["splits"]
     lines = [f"# {args.task}: {', '.join(variants)}", ""]
@@ -250,6 +272,7 @@ def run(args: Args) -> int:
         lines += [f"## {variant}", "", "```", format_table(table), "```", ""]
         print(f"{variant}\n{format_table(table)}\n")
     path = args.out / "results.md"
+    args.out.mkdir(parents=True, exist_ok=True)  # every row may have been kept elsewhere
     write_text(path, "\n".join(lines))
     print(f"results: {path}")
     return 0
