@@ -7,7 +7,7 @@ import shutil
 import pytest
 
 from tax3d import train
-from tax3d.benchmark import Args, run
+from tax3d.benchmark import Args, demos_digest, run
 from tax3d.checkpoint import sha256
 
 
@@ -40,6 +40,8 @@ def test_rows_are_scored_once_and_a_stop_between_rows_resumes(data, tmp_path, ca
     assert row["config"]["data"]["val"] == [str(data / "val")] and row["weights_chosen_on"] == "val"
     assert row["preset"] == "cpu" and set(row["splits"]) == {"unseen", "ood"}
     assert row["test"]["first_index"] == 100 and row["splits"]["unseen"]["episodes"] == 1
+    assert row["data_sha256"]["unseen"] == demos_digest([data / "unseen" / "demo_100.npz"])  # which episodes
+    assert row["data_sha256"]["train"] == demos_digest([data / "train" / "demo_0.npz"]) != row["data_sha256"]["ood"]
     low, high = row["splits"]["unseen"]["success_ci95"]
     assert low <= row["splits"]["unseen"]["success_rate"] <= high
     episodes = json.loads((tmp_path / "bench" / "cd" / "eval" / "results.json").read_text())["episodes"]
@@ -125,6 +127,7 @@ def test_the_floor_and_ceiling_rows_score_fixed_goals_without_training(tmp_path,
     for split in ("train", "val", "unseen", "ood"):
         (tmp_path / "data" / split).mkdir(parents=True)
     monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: {"failed": []})
+    monkeypatch.setattr("tax3d.benchmark._data_digests", lambda a, data: {})  # no demos in these folders
     args = Args(task="hangproccloth-unimodal", variants="floor,ceiling", out=tmp_path / "b", episodes=1,
                 data=tmp_path / "data", keep=tmp_path / "keep", minutes=60)
     assert run(args) == 0
@@ -175,3 +178,16 @@ def test_a_kept_row_is_not_trained_or_scored_again_when_out_is_gone(tmp_path, mo
     monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: pytest.fail("refused first"))
     with pytest.raises(UsageError, match=r"^--keep .*cd.json holds the row of hangbag with --num-train 16; expected"):
         run(args)
+
+
+def test_the_demos_digest_follows_their_contents_not_their_files(generated, tmp_path):
+    from tax3d.data.format import load_demo, save_demo
+
+    demos, _ = generated
+    first = demos_digest([demos / "demo_0.npz"])
+    demo = load_demo(demos / "demo_0.npz")
+    save_demo(tmp_path / "demo_0.npz", demo)  # the same demo written again, at another time
+    assert demos_digest([tmp_path / "demo_0.npz"]) == first
+    demo["flow"] = demo["flow"] + 1e-6
+    save_demo(tmp_path / "demo_0.npz", demo)
+    assert demos_digest([tmp_path / "demo_0.npz"]) != first

@@ -9,6 +9,7 @@ and a rerun skips what is there, in OUT or in --keep: a row is never trained or 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import shlex
 import sys
@@ -166,6 +167,47 @@ def _only(cls, **values) -> dict:
     return {k: v for k, v in values.items() if k in names and v is not None}
 
 
+def _feed(h, value) -> None:
+    import numpy as np
+
+    if isinstance(value, dict):
+        for key in sorted(value):
+            h.update(str(key).encode())
+            _feed(h, value[key])
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            _feed(h, item)
+    elif isinstance(value, np.ndarray):
+        h.update(f"{value.dtype}{value.shape}".encode())
+        h.update(np.ascontiguousarray(value).tobytes())
+    else:
+        h.update(repr(value).encode())
+
+
+def demos_digest(files) -> str:
+    """sha256 of the demos' names and contents (arrays, not file bytes, which hold write times): equal digests,
+    equal demos."""
+    from tax3d.data.format import load_demo
+
+    h = hashlib.sha256()
+    for path in files:
+        h.update(Path(path).name.encode())
+        _feed(h, load_demo(path))
+    return h.hexdigest()
+
+
+def _data_digests(args: Args, data: Path) -> dict:
+    """The digest of each split a row used: its training demos, the val demos, the test episodes."""
+    from tax3d.data.format import list_demos
+    from tax3d.sim.tasks import get_task
+
+    num = args.num_train or get_task(args.task).sizes["train"]
+    test = [f"demo_{i}.npz" for i in range(args.first_index, args.first_index + args.episodes)]
+    return {"train": demos_digest(list_demos(data / "train")[:num]),
+            "val": demos_digest(list_demos(data / "val")[:args.num_val]),
+            **{split: demos_digest([data / split / name for name in test]) for split in ("unseen", "ood")}}
+
+
 def _kept(args: Args, variant: str) -> dict | None:
     """The row's summary in --keep, where OUT has lost it (a fresh machine, OUT deleted): it counts as scored."""
     path = None if args.keep is None else args.keep / f"{variant}.json"
@@ -209,7 +251,8 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
            "weights_sha256": summary["weights_sha256"], "validations": validations, "config": config,
            "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
                     "scorings": (row or {}).get("test", {}).get("scorings", 0) + 1},
-           "splits": summary["splits"], "command": command(), "machine": summary["machine"],
+           "splits": summary["splits"], "data_sha256": _data_digests(args, data),
+           "command": command(), "machine": summary["machine"],
            "date": summary["date"]}
     write_json(path, row)
     if args.keep is not None:

@@ -213,6 +213,10 @@ def commands(rows: dict[int, dict[str, dict]]) -> list[str]:
                       f"{row['validations'][-1]['step']:,}" if best else row["weights_chosen_on"])
             weights = (f"weights `{row['weights']}` ({chosen}), sha256 `{row['weights_sha256'][:12]}`"
                        if row["weights_sha256"] else "no weights (a fixed goal)")
+            digests = row.get("data_sha256")  # rows kept before the digests were recorded have none
+            episodes = ("" if digests is None else
+                        f" (unseen `{digests['unseen'][:12]}`, ood `{digests['ood'][:12]}`)")
             lines.append(f"- {NAMES.get(key, key)}, {demos} demos: `{row['command']}` on {row['machine']}, "
-                         f"{row['date']}; {weights}; test episodes scored {row['test']['scorings']} time(s)")
+                         f"{row['date']}; {weights}; test episodes{episodes} scored {row['test']['scorings']} "
+                         "time(s)")
     return lines
