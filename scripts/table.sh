@@ -31,13 +31,9 @@ missing() {  # one line per row without kept JSON: task num folder row
   done
 }
 
-data() {  # task num folder dp3?: the demonstrations `tax3d benchmark` would make, made with both cores
-  local task=$1 num=$2 dir=data/$3 g="$TAX3D generate --task $1 --workers 2"
-  $g --split train --num "$num" --out "$dir/train"
-  $g --split val --num 40 --out "$dir/val"
-  $g --split unseen --first-index 100 --num 40 --out "$dir/unseen"
-  $g --split ood --first-index 100 --num 40 --out "$dir/ood"
-  if [ "$4" = dp3 ]; then $g --split train --num "$num" --trajectories --out "$dir/train-traj"; fi
+data() {  # task num folder row: the row's demonstrations, made once with both cores before rows use one
+  "$TAX3D" benchmark --task "$1" --variants "$4" --num-train "$2" --data "data/$3" --out "runs/table/$1-$2" \
+    --workers 2 --data-only
 }
 
 benchmark() {  # task num folder row: the row's command, as its kept JSON records it

@@ -102,6 +102,20 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
     assert trained[0].train.minutes == 30 and trained[0].data.task == "hangproccloth-unimodal"
 
 
+def test_data_only_makes_the_rows_demonstrations_and_nothing_else(tmp_path, monkeypatch):
+    from tax3d import evaluate
+
+    calls = []
+    monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: calls.append(a) or {"failed": []})
+    monkeypatch.setattr(train, "run", lambda a: pytest.fail("--data-only trains nothing"))
+    monkeypatch.setattr(evaluate, "evaluate", lambda a, progress=True: pytest.fail("--data-only scores nothing"))
+    args = Args(task="hangbag", variants="dp3", out=tmp_path / "b", num_train=16, workers=2, data_only=True)
+    assert run(args) == 0
+    assert [(c.out.name, c.num, c.workers) for c in calls] == [
+        ("train", 16, 2), ("val", 40, 2), ("unseen", 40, 2), ("ood", 40, 2), ("train-traj", 16, 2)]
+    assert not (tmp_path / "b" / "dp3").exists() and not (tmp_path / "b" / "results.md").exists()
+
+
 def test_a_row_records_the_benchmark_command(monkeypatch):
     from tax3d import benchmark
 
@@ -172,7 +186,12 @@ def test_a_kept_row_is_not_trained_or_scored_again_when_out_is_gone(tmp_path, mo
     args = Args(task="hangbag", variants="cd", out=tmp_path / "fresh", num_train=16, episodes=1,
                 data=tmp_path / "data", keep=keep)
     assert run(args) == 0  # OUT never held the row (a fresh machine): the kept summary stands
-    assert "kept in" in capsys.readouterr().out and json.loads((keep / "cd.json").read_text()) == kept
+    assert "scored before" in capsys.readouterr().out and json.loads((keep / "cd.json").read_text()) == kept
+
+    args.rescore = True  # its weights were never in OUT: scoring again would mean training other weights
+    with pytest.raises(UsageError, match=r"^--rescore: the weights cd was scored with are not in .*fresh/cd/train"):
+        run(args)
+    args.rescore = False
 
     args.num_train = 64  # the kept row belongs to another size: refused before any demonstration is made
     monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: pytest.fail("refused first"))

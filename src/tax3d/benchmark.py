@@ -71,7 +71,11 @@ class Args:
     """also write each scored row's summary here, as VARIANT.json (a folder of the repository, say); a row kept
     here is not trained or scored again, even where OUT is gone"""
     rescore: bool = False
-    """score rows on the test episodes again even where they have been (the count is kept in the summary)"""
+    """score rows on the test episodes again even where they have been (the count is kept in the summary); the
+    row's trained weights must still be in OUT"""
+    data_only: bool = False
+    """only make the rows' demonstrations (train, val, the test episodes; train-traj for dp3), then stop: to make
+    them once with more --workers than the rows are scored with"""
     device: str = "auto"
     """where training and evaluation's predictions run: auto (CUDA when there is one), cpu, cuda or cuda:K"""
 
@@ -221,14 +225,19 @@ def _kept(args: Args, variant: str) -> dict | None:
     return row
 
 
+def _scored(args: Args, variant: str) -> dict | None:
+    """The row's summary where it has been scored: in OUT, else in --keep (OUT gone)."""
+    path = args.out / variant / "row.json"
+    return json.loads(path.read_text()) if path.is_file() else _kept(args, variant)
+
+
 def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dict:
     """The row's summary: scored on the test episodes now, or read back when it has been (unless --rescore)."""
     from tax3d.checkpoint import read_log
     from tax3d.evaluate import Args as EvalArgs
     from tax3d.evaluate import evaluate
 
-    path = args.out / variant / "row.json"
-    row = json.loads(path.read_text()) if path.is_file() else _kept(args, variant)
+    row = _scored(args, variant)
     if row is not None and not args.rescore:
         return row
     print(f"[benchmark] scoring {variant} ({checkpoint or 'a fixed goal'}) on the test episodes", flush=True)
@@ -254,7 +263,7 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
            "splits": summary["splits"], "data_sha256": _data_digests(args, data),
            "command": command(), "machine": summary["machine"],
            "date": summary["date"]}
-    write_json(path, row)
+    write_json(args.out / variant / "row.json", row)
     if args.keep is not None:
         write_json(args.keep / f"{variant}.json", row)
     return row
@@ -292,6 +301,11 @@ def _check(args: Args) -> list[str]:
         args.keep.mkdir(parents=True, exist_ok=True)
         for variant in variants:
             _kept(args, variant)  # a kept row of another task or size fails here, before any long work
+    for variant in variants if args.rescore else ():
+        run = args.out / variant / "train"
+        if variant not in FIXED_GOALS and _scored(args, variant) is not None and not (run / "DONE").is_file():
+            raise UsageError(f"--rescore: the weights {variant} was scored with are not in {run}; expected its "
+                             f"finished training there (training it again would score other weights)")
     return variants
 
 
@@ -300,13 +314,15 @@ def run(args: Args) -> int:
 
     variants = _check(args)
     data = _generate_data(args)
+    if args.data_only:
+        return 0
     tables = {}
     for variant in variants:
-        kept = None if args.rescore or (args.out / variant / "row.json").is_file() else _kept(args, variant)
-        if kept is not None:
-            print(f"[benchmark] {variant}: kept in {args.keep}, not trained or scored again (--rescore to score it)",
+        scored = None if args.rescore else _scored(args, variant)
+        if scored is not None:
+            print(f"[benchmark] {variant}: scored before, not trained or scored again (--rescore to score it)",
                   flush=True)
-            tables[variant] = kept["splits"]
+            tables[variant] = scored["splits"]
             continue
         checkpoint = None if variant in FIXED_GOALS else _train(args, variant, data)
         tables[variant] = _score(args, variant, checkpoint, data)["splits"]
