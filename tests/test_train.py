@@ -475,3 +475,33 @@ def test_generate_with_nothing_to_do_shows_no_bar(capsys):
 
     assert generate._run([], generate.Args(), progress=True) == []
     assert capsys.readouterr().err == ""
+
+
+def test_a_sampled_validation_measures_what_predict_returns_by_default():
+    """train.val_points sampled: the network sees the farthest-point sample of its training size, as `predict` does
+    by default; whole: every point. The RMSE is on the whole cloud either way."""
+    from tests.conftest import tiny_model
+
+    model = tiny_model(num_action_points=32, num_anchor_points=24)
+    demo = synthetic_demo(0, n=90, m=70)  # larger clouds than the network trained on
+    goal = demo["action_pc"] + demo["flow"]
+    for points, max_points in (("sampled", None), ("whole", 0)):
+        record = train.validate(model, [demo], num_samples=2, seed=0, points=points)
+        [samples] = model.predict_scenes([(demo["action_pc"], demo["anchor_pc"])], num_samples=2, seed=0,
+                                         max_points=max_points)
+        assert samples.shape == (2, 90, 3)
+        assert record["val_rmse"] == pytest.approx(min(np.sqrt(((s - goal) ** 2).sum(-1).mean()) for s in samples))
+    whole = train.validate(model, [demo], num_samples=2, seed=0, points="whole")["val_rmse"]
+    assert whole != pytest.approx(train.validate(model, [demo], num_samples=2, seed=0, points="sampled")["val_rmse"])
+
+
+def test_the_loop_validates_with_the_configured_points(tmp_path, monkeypatch):
+    folder = tmp_path / "demos"
+    folder.mkdir()
+    save_demo(folder / "demo_0.npz", synthetic_demo(3))
+    asked, real = [], train.validate
+    monkeypatch.setattr(train, "validate", lambda *a, **k: asked.append(k["points"]) or real(*a, **k))
+    assert main(["train", *TINY, "--out", str(tmp_path / "run"), "--data.train", str(folder), "--data.val",
+                 str(folder), "--train.steps", "2", "--train.val_every", "2", "--train.val_points", "sampled"]) == 0
+    assert asked == ["sampled"]
+    assert cfg.load(tmp_path / "run" / "last" / "config.json").train.val_points == "sampled"

@@ -109,6 +109,9 @@ class TrainConfig:
     """samples per validation demo for the min-of-samples RMSE"""
     val_demos: Annotated[int, NonNegative] = 0
     """validate on the first this many val demos (0: all)"""
+    val_points: Literal["whole", "sampled"] = "whole"
+    """the network's input at validation: the whole clouds, or the farthest-point sample of the training size that
+    `predict` takes by default, its displacements spread to every point (the RMSE is on whole clouds either way)"""
     minutes: Annotated[float, NonNegative] = 0.0
     """plan the run to end after this many minutes on this machine: the step rate measured over the first steps
     fixes train.steps (and so the cosine schedule) then, timed again at every validation (tax3d.plan); config.json

@@ -134,7 +134,8 @@ def load_val_demos(config: cfg.Config) -> list[dict]:
     return [load_demo(path) for path in files]
 
 
-def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps: int | None = None) -> dict:
+def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps: int | None = None,
+             points: str = "whole") -> dict:
     """World-frame RMSE on whole action clouds: the mean over demos of the min over samples, and over all samples;
     val_grip_error: the mean over demos and samples of the distance at the grasped vertices (where the policy's
     grippers go); where demos share an observation (one per mode), also the coverage RMSE over those groups
@@ -142,7 +143,8 @@ def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps
     was_training = model.training
     model.eval()
     scenes = [(d["action_pc"], d["anchor_pc"]) for d in demos]
-    predictions = model.predict_scenes(scenes, num_samples=num_samples, steps=steps, seed=seed, max_points=0)
+    predictions = model.predict_scenes(scenes, num_samples=num_samples, steps=steps, seed=seed,
+                                       max_points=0 if points == "whole" else None)
     model.train(was_training)
     goals = [d["action_pc"] + d["flow"] for d in demos]
     best = [float(min_of_samples_rmse(p, g)) for p, g in zip(predictions, goals)]
@@ -421,7 +423,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
         evaluated = copy.deepcopy(model)
         evaluated.net.load_state_dict(weights())
         began = time.time()
-        validate(evaluated, val_demos, c.val_samples, seed=c.seed)
+        validate(evaluated, val_demos, c.val_samples, seed=c.seed, points=c.val_points)
         return time.time() - began
 
     def planned(message: str) -> None:
@@ -479,7 +481,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                 if val_demos:
                     evaluated = copy.deepcopy(model)
                     evaluated.net.load_state_dict(weights())
-                    record.update(validate(evaluated, val_demos, c.val_samples, seed=c.seed))
+                    record.update(validate(evaluated, val_demos, c.val_samples, seed=c.seed, points=c.val_points))
                     if record["val_rmse"] < best:
                         best = record["val_rmse"]
                         save_checkpoint(out, "best", model, weights(), None)
