@@ -5,8 +5,10 @@
 #   bash scripts/table.sh --dry-run  # only print their commands
 #
 # Each row is one `tax3d benchmark` command (60 minutes of training on one core, its weights chosen on val, its
-# test episodes scored once); a killed row resumes from runs/table/.../last when run again. A task's
-# demonstrations are generated once, with both cores, before its first row (data/<folder>, skipped when present).
+# test episodes scored once); a killed row resumes from runs/table/.../last when run again. Task by task: first the
+# demonstrations of the task's missing rows, made with both cores while nothing trains (data/<folder>, skipped
+# where present), then its rows two at a time. No demonstration is made beside a training row, so every row of a
+# task sees the same load; a task with an odd number of rows leaves a core idle for its last row.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 TAX3D=${TAX3D:-.venv/bin/tax3d}
@@ -22,18 +24,13 @@ hangproccloth-multimodal 512 multimodal cd cp floor ceiling cd_w cp_w rd rp cd_n
 hangproccloth-multimodal 64 multimodal cd cp
 "
 
-missing() {  # one line per row without kept JSON: task num folder row
+missing() {  # task num: the task's rows without kept JSON, one a line
   echo "$ROWS" | while read -r task num folder rows; do
-    [ -n "$task" ] || continue
+    [ "$task $num" = "$1 $2" ] || continue
     for row in $rows; do
-      [ -f "docs/results/table/$task/$num/$row.json" ] || echo "$task $num $folder $row"
+      [ -f "docs/results/table/$task/$num/$row.json" ] || echo "$row"
     done
   done
-}
-
-data() {  # task num folder row: the row's demonstrations, made once with both cores before rows use one
-  "$TAX3D" benchmark --task "$1" --variants "$4" --num-train "$2" --data "data/$3" --out "runs/table/$1-$2" \
-    --workers 2 --data-only
 }
 
 benchmark() {  # task num folder row: the row's command, as its kept JSON records it
@@ -41,20 +38,39 @@ benchmark() {  # task num folder row: the row's command, as its kept JSON record
     "--keep docs/results/table/$1/$2 --workers 1"
 }
 
+data() {  # task num folder rows: the demonstrations of the task's rows (comma-separated), with both cores
+  "$TAX3D" benchmark --task "$1" --variants "$4" --num-train "$2" --data "data/$3" --out "runs/table/$1-$2" \
+    --workers 2 --data-only
+}
+
 row() {  # task num folder row
   local log=runs/logs/$1-$2-$4.log
-  mkdir -p runs/logs data
-  flock "data/.$3.lock" bash -c 'data "$@"' data "$@" >> "$log" 2>&1
   echo "$(date -u +%FT%TZ) start $*"
   # shellcheck disable=SC2046  # the command's words hold no spaces
   "$TAX3D" $(benchmark "$@") >> "$log" 2>&1 && echo "$(date -u +%FT%TZ) done $*" \
     || echo "$(date -u +%FT%TZ) FAILED $* (see $log)"
 }
 
+tasks() {  # task num folder, in the order above
+  echo "$ROWS" | while read -r task num folder _; do [ -z "$task" ] || echo "$task $num $folder"; done
+}
+
 if [ "${1:-}" = --dry-run ]; then
-  missing | while read -r line; do echo "tax3d $(benchmark $line)"; done
+  tasks | while read -r task num folder; do
+    missing "$task" "$num" | while read -r r; do echo "tax3d $(benchmark "$task" "$num" "$folder" "$r")"; done
+  done
   exit 0
 fi
+mkdir -p runs/logs data
+exec 9> runs/.table.lock
+flock -n 9 || { echo "scripts/table.sh: another queue holds runs/.table.lock; expected one at a time" >&2; exit 2; }
 export TAX3D MINUTES
-export -f row data benchmark
-missing | xargs -P 2 -L 1 bash -c 'row "$@"' row
+export -f row benchmark
+tasks | while read -r task num folder; do
+  rows=$(missing "$task" "$num" | paste -sd, -)
+  [ -n "$rows" ] || continue
+  echo "$(date -u +%FT%TZ) data $task $num $folder ($rows)"
+  data "$task" "$num" "$folder" "$rows" >> "runs/logs/$task-$num-data.log" 2>&1 </dev/null \
+    || { echo "$(date -u +%FT%TZ) FAILED data $task $num (see runs/logs/$task-$num-data.log)"; exit 1; }
+  missing "$task" "$num" | sed "s|^|$task $num $folder |" | xargs -P 2 -L 1 bash -c 'row "$@"' row
+done

@@ -173,3 +173,42 @@ def test_the_table_script_runs_every_row_of_each_task_with_the_command_its_kept_
     done.write_text("{}")
     left = dry_run(tmp_path)  # a kept row is not run again
     assert len(left) == len(commands) - 1 and not any("--task hangbag --variants cd " in c for c in left)
+
+
+def test_the_table_script_makes_each_tasks_demonstrations_before_its_rows_and_never_beside_them(tmp_path):
+    """Task by task: one --data-only call (both cores) for the task's missing rows, then those rows; a second queue
+    is refused while one runs."""
+    import shutil
+    import subprocess
+
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "table.sh", tmp_path / "scripts" / "table.sh")
+    kept = tmp_path / "docs" / "results" / "table" / "hangbag" / "16"
+    kept.mkdir(parents=True)
+    (kept / "dp3.json").write_text("{}")
+    fake = tmp_path / "fake-tax3d"
+    fake.write_text(f'#!/bin/bash\necho "$*" >> {tmp_path / "calls.txt"}\n')
+    fake.chmod(0o755)
+    run = subprocess.run(["bash", "scripts/table.sh"], cwd=tmp_path, env={"PATH": "/usr/bin:/bin", "TAX3D": str(fake)},
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    calls = [line.split() for line in (tmp_path / "calls.txt").read_text().splitlines()]
+    task_of = [(c[c.index("--task") + 1], c[c.index("--num-train") + 1]) for c in calls]
+    data = [i for i, c in enumerate(calls) if "--data-only" in c]
+    assert [task_of[i] for i in data] == list(dict.fromkeys(task_of))  # one data call a task, in order
+    for start, end in zip(data, [*data[1:], len(calls)]):
+        assert set(task_of[start:end]) == {task_of[start]}  # that task's rows, and nothing else, follow it
+        rows = [c[c.index("--variants") + 1] for c in calls[start + 1:end]]
+        assert sorted(calls[start][calls[start].index("--variants") + 1].split(",")) == sorted(rows)
+        assert calls[start][calls[start].index("--workers") + 1] == "2"
+        assert all(c[c.index("--workers") + 1] == "1" for c in calls[start + 1:end])
+    hangbag = [c[c.index("--variants") + 1] for c, t in zip(calls, task_of) if t == ("hangbag", "16")]
+    assert hangbag and not any("dp3" in v.split(",") for v in hangbag)  # kept: neither its demos nor its row
+
+    with open(tmp_path / "runs" / ".table.lock", "w") as lock:
+        import fcntl
+
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        second = subprocess.run(["bash", "scripts/table.sh"], cwd=tmp_path,
+                                env={"PATH": "/usr/bin:/bin", "TAX3D": str(fake)}, capture_output=True, text=True)
+    assert second.returncode == 2 and "another queue" in second.stderr
