@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The paper's table (docs/results/table/TASK/NUM/ROW.json): every row not yet kept, two at a time, one core each.
 #
-#   bash scripts/table.sh            # all missing rows, in the order below
-#   bash scripts/table.sh --dry-run  # only print their commands
+#   bash scripts/table.sh                  # all missing rows, in the order below
+#   bash scripts/table.sh hangbag ...      # the named tasks' rows only, in that order
+#   bash scripts/table.sh --dry-run [...]  # only print their commands
 #
 # Each row is one `tax3d benchmark` command (60 minutes of training on one core, its weights chosen on val, its
 # test episodes scored once); a killed row resumes from runs/table/.../last when run again. Task by task: first the
@@ -51,12 +52,20 @@ row() {  # task num folder row
     || echo "$(date -u +%FT%TZ) FAILED $* (see $log)"
 }
 
-tasks() {  # task num folder, in the order above
-  echo "$ROWS" | while read -r task num folder _; do [ -z "$task" ] || echo "$task $num $folder"; done
+tasks() {  # task num folder: the named tasks in their order, or every task in the order above
+  local all
+  all=$(echo "$ROWS" | while read -r task num folder _; do [ -z "$task" ] || echo "$task $num $folder"; done)
+  [ $# -gt 0 ] || { echo "$all"; return; }
+  for name in "$@"; do
+    grep "^$name " <<< "$all" || { echo "scripts/table.sh: unknown task '$name'; expected one of:" \
+      $(cut -d' ' -f1 <<< "$all" | sort -u) >&2; return 2; }
+  done
 }
 
-if [ "${1:-}" = --dry-run ]; then
-  tasks | while read -r task num folder; do
+DRY=; [ "${1:-}" = --dry-run ] && { DRY=1; shift; }
+TASKS=$(tasks "$@") || exit 2
+if [ -n "$DRY" ]; then
+  echo "$TASKS" | while read -r task num folder; do
     missing "$task" "$num" | while read -r r; do echo "tax3d $(benchmark "$task" "$num" "$folder" "$r")"; done
   done
   exit 0
@@ -66,7 +75,7 @@ exec 9> runs/.table.lock
 flock -n 9 || { echo "scripts/table.sh: another queue holds runs/.table.lock; expected one at a time" >&2; exit 2; }
 export TAX3D MINUTES
 export -f row benchmark
-tasks | while read -r task num folder; do
+echo "$TASKS" | while read -r task num folder; do
   rows=$(missing "$task" "$num" | paste -sd, -)
   [ -n "$rows" ] || continue
   echo "$(date -u +%FT%TZ) data $task $num $folder ($rows)"

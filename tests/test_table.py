@@ -212,3 +212,24 @@ def test_the_table_script_makes_each_tasks_demonstrations_before_its_rows_and_ne
         second = subprocess.run(["bash", "scripts/table.sh"], cwd=tmp_path,
                                 env={"PATH": "/usr/bin:/bin", "TAX3D": str(fake)}, capture_output=True, text=True)
     assert second.returncode == 2 and "another queue" in second.stderr
+
+
+def test_the_table_script_takes_the_named_tasks_in_their_order(tmp_path):
+    import shutil
+    import subprocess
+
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "table.sh", tmp_path / "scripts" / "table.sh")
+
+    def dry_run(*tasks):
+        return subprocess.run(["bash", "scripts/table.sh", "--dry-run", *tasks], cwd=tmp_path, capture_output=True,
+                              text=True)
+
+    lines = dry_run("hangproccloth-unimodal", "hangbag").stdout.splitlines()
+    tasks = [(line.split()[line.split().index("--task") + 1], line.split()[line.split().index("--num-train") + 1])
+             for line in lines]
+    assert list(dict.fromkeys(tasks)) == [("hangproccloth-unimodal", "512"), ("hangproccloth-unimodal", "64"),
+                                          ("hangbag", "16")]
+    bad = dry_run("hangbag", "bogus")
+    assert bad.returncode == 2 and not bad.stdout and len(bad.stderr.splitlines()) == 1
+    assert "unknown task 'bogus'; expected one of: hangbag hangproccloth-multimodal" in bad.stderr
