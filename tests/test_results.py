@@ -648,3 +648,18 @@ def test_speed_page_plot_of_an_unknown_pair_is_a_one_line_error(speed_root, caps
     toml.write_text(re.sub(r'^plot = \[.*\]$', 'plot = ["nope"]', toml.read_text(), flags=re.M))
     one_line_error(capsys, ["results", "training-speed", "--root", speed_root], "training-speed.toml: plot names nope")
     assert not (speed_root / "training-speed.md").exists()
+
+
+def test_speed_page_says_which_runs_validate_on_the_training_size_sample(speed_root):
+    spec = tomllib.loads((speed_root / "pages" / "training-speed.toml").read_text())
+    pair = next(s for s in spec["source"] if s.get("table") == "pair")
+    path = speed_root / pair["summary"]
+    kept = json.loads(path.read_text())
+    name = list(kept["runs"])[-1]
+    kept["runs"][name]["config"]["train"]["val_points"] = "sampled"
+    path.write_text(json.dumps(kept))
+    assert main(["results", "training-speed", "--root", str(speed_root)]) == 0
+    caption = next(line for line in (speed_root / "training-speed.md").read_text().splitlines()
+                   if line.startswith(f"**{pair['label']}**"))
+    assert f"; {name}: the network's input a farthest-point sample of its training size" in caption
+    assert caption.count("farthest-point") == 1

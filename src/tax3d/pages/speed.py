@@ -65,9 +65,12 @@ class SpeedPage(MeasurementPage):
                 how = f"{plans[0]:g}-minute plans, one core each, started together"
             else:
                 how = f"plans of {' and '.join(f'{m:g}' for m in plans)} minutes, one core each, started together"
+            sampled = [n for n, r in runs.items() if r.get("config", {}).get("train", {}).get("val_points") == "sampled"]
+            where = (f"; {', '.join(sampled)}: the network's input a farthest-point sample of its training size, the "
+                     f"RMSE on whole clouds" if sampled else "")
             lines += [f"**{pair['label']}** ({how}; "
                       f"validation RMSE on the first {pair['val_demos']} demos of `{' '.join(pair['val'])}`, best of "
-                      f"{pair['val_samples']} samples):", "",
+                      f"{pair['val_samples']} samples{where}):", "",
                       "| run | steps | steps per minute | " + " | ".join(f"validation {i + 1}" for i in range(marks))
                       + " |", "| --- | --- | --- |" + " --- |" * marks]
             for name, r in runs.items():
