@@ -318,6 +318,23 @@ def test_large_clouds_run_the_network_on_a_sample_and_carry_its_displacements(va
         model.predict(action, anchor, max_points=-1)
 
 
+@pytest.mark.parametrize("variant", ["sd", "sp"])
+def test_scene_variants_always_see_the_scene_they_trained_on(variant):
+    """SD/SP put the frame's origin at the mean of the action and anchor points together: a denser action cloud would
+    move it away from where training put it, so the network always sees the training size, whatever max_points."""
+    model = tiny_model(variant)
+    action, anchor, _ = scene(0, n=200)
+    trained = model.config.data.num_action_points
+    for max_points in (None, 0, 100):
+        frames = model._frames(action, anchor, model._generator(None, 4), max_points=max_points)
+        assert frames["carry"]["sampled"].shape[0] == trained
+        origin = torch.cat([frames["carry"]["sampled"], frames["anchor"] + frames["anchor_mean"]]).mean(0)
+        np.testing.assert_allclose(frames["anchor_mean"].numpy(), origin.numpy(), atol=1e-5)
+    whole = model.predict(action, anchor, seed=4, max_points=0)
+    assert whole.shape == (1, 200, 3)
+    np.testing.assert_allclose(whole, model.predict(action, anchor, seed=4), atol=1e-5)
+
+
 def test_predict_scenes_reports_progress_once_per_denoising_step(monkeypatch):
     """The CLI's bar advances once per denoising step of every batch, so a long prediction shows it is alive."""
     import tqdm.auto

@@ -157,9 +157,12 @@ class Tax3D(nn.Module):
         k = self.config.data.num_anchor_points
         if anchor.shape[0] > k:
             anchor = anchor[farthest_point_sample(anchor, k, start=generator)]
-        limit = self.config.data.num_action_points if max_points is None else max_points
+        trained = self.config.data.num_action_points
+        # SD/SP: the scene frame's origin is the mean of the cloud the network trained on (that many action and
+        # anchor points); a denser action cloud would move it, so these variants always take the training size
+        limit = trained if max_points is None or self.spec.scene else max_points
         carry = None
-        if 0 < limit < action.shape[0] and not self.spec.scene:
+        if 0 < limit < action.shape[0]:
             full = action
             action = action[farthest_point_sample(action, limit, start=generator)]
             k = min(CARRY_NEIGHBOURS, limit)
@@ -198,7 +201,8 @@ class Tax3D(nn.Module):
         """World-frame goal clouds (num_samples, N, 3) for action (N, 3) and anchor (M, 3) world points.
 
         Any N works, and the goal keeps the order of the action points. The network runs on at most
-        `max_points` of them (default: the number it was trained on; 0: all), farthest-point sampled; every other
+        `max_points` of them (default: the number it was trained on; 0: all; SD/SP: always the number it was trained
+        on, whose mean is their frame's origin), farthest-point sampled; every other
         point moves by the inverse-distance-weighted displacement of its nearest sampled points. The anchor is downsampled by FPS to the trained
         number of points. The samples are denoised together, in one batch. numpy in, numpy out; tensors in,
         tensors out. With return_trajectory, also the denoising trajectory in the world frame, (S + 1, num_samples,
