@@ -193,9 +193,12 @@ class TaskPage(Page):
                 "(other jobs on the machine; `benchmarks/` has the quiet-machine figures)", self.timings())]
         protocol = self.protocol()
         if protocol:  # the table under one protocol heads the page; the earlier recipes' page folds below it
+            scene = any(r.get("paper") in ("SD", "SP") for r in self.rows)
             lines = [*protocol, "## Earlier recipes", "", "Rows trained with earlier recipes, their weights and "
                      "settings chosen on the `unseen` and `ood` episodes demo_0-39; the table above replaces them row "
-                     "by row.", "", *fold("The earlier recipes' rows, notes and commands", lines)]
+                     "by row." + (" Their SD and SP rows were scored while these variants were given the whole "
+                                  "action cloud, whose mean moved their frame's origin from where training put it."
+                                  if scene else ""), "", *fold("The earlier recipes' rows, notes and commands", lines)]
         return "\n".join([f"# {spec['title']}", "", *lines]).rstrip() + "\n"
 
     def plot(self) -> bytes:
