@@ -157,10 +157,9 @@ class Tax3D(nn.Module):
         k = self.config.data.num_anchor_points
         if anchor.shape[0] > k:
             anchor = anchor[farthest_point_sample(anchor, k, start=generator)]
-        trained = self.config.data.num_action_points
         # SD/SP: the scene frame's origin is the mean of the cloud the network trained on (that many action and
         # anchor points); a denser action cloud would move it, so these variants always take the training size
-        limit = trained if max_points is None or self.spec.scene else max_points
+        limit = self.config.data.num_action_points if max_points is None or self.spec.scene else max_points
         carry = None
         if 0 < limit < action.shape[0]:
             full = action
