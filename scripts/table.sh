@@ -6,10 +6,10 @@
 #   bash scripts/table.sh --dry-run [...]  # only print their commands
 #
 # Each row is one `tax3d benchmark` command (60 minutes of training on one core, its weights chosen on val, its
-# test episodes scored once); a killed row resumes from runs/table/.../last when run again. Task by task: first the
-# demonstrations of the task's missing rows, made with both cores while nothing trains (data/<folder>, skipped
-# where present), then its rows two at a time. No demonstration is made beside a training row, so every row of a
-# task sees the same load; a task with an odd number of rows leaves a core idle for its last row.
+# test episodes scored once); a killed row resumes from runs/table/.../last when run again. First the demonstrations
+# of every named task's missing rows, made with both cores while nothing trains (data/<folder>, skipped where
+# present), then all those rows in one stream, two at a time: no demonstration is made beside a training row, and
+# a task with an odd number of rows shares its last pair with the next task's first row instead of idling a core.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 TAX3D=${TAX3D:-.venv/bin/tax3d}
@@ -81,5 +81,7 @@ echo "$TASKS" | while read -r task num folder; do
   echo "$(date -u +%FT%TZ) data $task $num $folder ($rows)"
   data "$task" "$num" "$folder" "$rows" >> "runs/logs/$task-$num-data.log" 2>&1 </dev/null \
     || { echo "$(date -u +%FT%TZ) FAILED data $task $num (see runs/logs/$task-$num-data.log)"; exit 1; }
-  missing "$task" "$num" | sed "s|^|$task $num $folder |" | xargs -P 2 -L 1 bash -c 'row "$@"' row
 done
+echo "$TASKS" | while read -r task num folder; do
+  missing "$task" "$num" | sed "s|^|$task $num $folder |"
+done | xargs -P 2 -L 1 bash -c 'row "$@"' row

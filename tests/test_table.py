@@ -175,9 +175,10 @@ def test_the_table_script_runs_every_row_of_each_task_with_the_command_its_kept_
     assert len(left) == len(commands) - 1 and not any("--task hangbag --variants cd " in c for c in left)
 
 
-def test_the_table_script_makes_each_tasks_demonstrations_before_its_rows_and_never_beside_them(tmp_path):
-    """Task by task: one --data-only call (both cores) for the task's missing rows, then those rows; a second queue
-    is refused while one runs."""
+def test_the_table_script_makes_every_tasks_demonstrations_first_and_never_beside_a_row(tmp_path):
+    """One --data-only call (both cores) a task for its missing rows, all before the first row; then the rows of
+    every task in one stream, so an odd task's last row pairs with the next task's first; a second queue is refused
+    while one runs."""
     import shutil
     import subprocess
 
@@ -195,13 +196,15 @@ def test_the_table_script_makes_each_tasks_demonstrations_before_its_rows_and_ne
     calls = [line.split() for line in (tmp_path / "calls.txt").read_text().splitlines()]
     task_of = [(c[c.index("--task") + 1], c[c.index("--num-train") + 1]) for c in calls]
     data = [i for i, c in enumerate(calls) if "--data-only" in c]
+    assert data == list(range(len(data)))  # every demonstration is made before the first row starts
     assert [task_of[i] for i in data] == list(dict.fromkeys(task_of))  # one data call a task, in order
-    for start, end in zip(data, [*data[1:], len(calls)]):
-        assert set(task_of[start:end]) == {task_of[start]}  # that task's rows, and nothing else, follow it
-        rows = [c[c.index("--variants") + 1] for c in calls[start + 1:end]]
-        assert sorted(calls[start][calls[start].index("--variants") + 1].split(",")) == sorted(rows)
-        assert calls[start][calls[start].index("--workers") + 1] == "2"
-        assert all(c[c.index("--workers") + 1] == "1" for c in calls[start + 1:end])
+    rows = calls[len(data):]
+    assert list(dict.fromkeys(task_of[len(data):])) == [task_of[i] for i in data]  # the rows, task after task
+    for i in data:
+        ran = [c[c.index("--variants") + 1] for c, t in zip(rows, task_of[len(data):]) if t == task_of[i]]
+        assert sorted(calls[i][calls[i].index("--variants") + 1].split(",")) == sorted(ran)
+        assert calls[i][calls[i].index("--workers") + 1] == "2"
+    assert all(c[c.index("--workers") + 1] == "1" for c in rows)
     hangbag = [c[c.index("--variants") + 1] for c, t in zip(calls, task_of) if t == ("hangbag", "16")]
     assert hangbag and not any("dp3" in v.split(",") for v in hangbag)  # kept: neither its demos nor its row
 
