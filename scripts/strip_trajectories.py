@@ -9,20 +9,9 @@ machine that trains TAX3D alone. Each file is written to a temporary name and re
 from __future__ import annotations
 
 import sys
-import zipfile
 from pathlib import Path
 
-from tax3d.atomic import atomic_write
-from tax3d.data.format import TRAJECTORY_PREFIX
-
-
-def strip(src: Path, dst: Path) -> None:
-    def write(tmp: Path) -> None:
-        with zipfile.ZipFile(src) as zin, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zout:
-            for info in zin.infolist():
-                if not info.filename.startswith(TRAJECTORY_PREFIX):
-                    zout.writestr(info, zin.read(info))
-    atomic_write(dst, write)
+from tax3d.data.format import strip_trajectories
 
 
 def main() -> int:
@@ -34,7 +23,7 @@ def main() -> int:
     dst.mkdir(parents=True, exist_ok=True)
     files = sorted(src.glob("demo_*.npz"))
     for path in files:
-        strip(path, dst / path.name)
+        strip_trajectories(path, dst / path.name)
     print(f"{len(files)} demos from {src} to {dst}")
     return 0
 

@@ -73,19 +73,37 @@ def test_one_budget_and_the_multimodal_recipe(tmp_path, capsys):
 
 
 def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_path, monkeypatch):
-    """A dp3 row adds the train demos with their trajectories (same split, same indices) and trains DP3 on them
-    for the table's minutes; the other rows' data is unchanged."""
+    """A dp3 row makes the train demos with their trajectories first (same split, same indices); the train demos of
+    the other rows are those files without the trajectories, not a second simulation. DP3 trains on them for the
+    table's minutes."""
+    import numpy as np
+
     from tax3d import benchmark
+    from tax3d.data import load_demo, write_demo
     from tax3d.sim import generate as gen
 
-    calls = []
-    monkeypatch.setattr(gen, "generate", lambda a, progress=True: calls.append(a) or {"failed": []})
+    calls, rng = [], np.random.default_rng(0)
+
+    def fake_generate(a, progress=True):
+        calls.append(a)
+        for i in range(a.first_index, a.first_index + a.num) if a.trajectories else ():
+            write_demo(a.out / f"demo_{i}.npz", rng.normal(size=(5, 3)), rng.normal(size=(4, 3)),
+                       flow=rng.normal(size=(5, 3)), traj_targets=rng.normal(size=(3, 2, 3)))
+        return {"failed": []}
+
+    monkeypatch.setattr(gen, "generate", fake_generate)
     args = Args(task="hangproccloth-unimodal", variants="cd,dp3", out=tmp_path, num_train=8, minutes=30)
     assert benchmark._check(args) == ["cd", "dp3"]
+    kept = write_demo(tmp_path / "data" / "train" / "demo_0.npz", np.zeros((5, 3)), np.ones((4, 3)), flow=np.zeros((5, 3)))
     benchmark._generate_data(args)
     plan = [(c.split, c.out.name, c.first_index, c.num, c.trajectories) for c in calls]
-    assert plan == [("train", "train", 0, 8, False), ("val", "val", 0, 40, False), ("unseen", "unseen", 100, 40, False),
-                    ("ood", "ood", 100, 40, False), ("train", "train-traj", 0, 8, True)]
+    assert plan == [("train", "train-traj", 0, 8, True), ("train", "train", 0, 8, False), ("val", "val", 0, 40, False),
+                    ("unseen", "unseen", 100, 40, False), ("ood", "ood", 100, 40, False)]
+    for i in range(1, 8):
+        with_traj, train = (load_demo(tmp_path / "data" / f / f"demo_{i}.npz") for f in ("train-traj", "train"))
+        assert "traj_targets" in with_traj and not any(k.startswith("traj_") for k in train)
+        assert all(np.array_equal(train[k], with_traj[k]) for k in ("action_pc", "anchor_pc", "flow"))
+    assert not load_demo(kept)["action_pc"].any()  # a train demo already there is left as it is
     trained = []
     from tax3d.baselines.dp3 import train as dp3_train
 
@@ -95,9 +113,6 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
         return 0
 
     monkeypatch.setattr(dp3_train, "run", fake_run)
-    (tmp_path / "data" / "train-traj").mkdir(parents=True)
-    for i in range(8):
-        (tmp_path / "data" / "train-traj" / f"demo_{i}.npz").write_bytes(b"")
     assert benchmark._train(args, "dp3", tmp_path / "data").name == "last"
     assert trained[0].train.minutes == 30 and trained[0].data.task == "hangproccloth-unimodal"
 
@@ -112,7 +127,7 @@ def test_data_only_makes_the_rows_demonstrations_and_nothing_else(tmp_path, monk
     args = Args(task="hangbag", variants="dp3", out=tmp_path / "b", num_train=16, workers=2, data_only=True)
     assert run(args) == 0
     assert [(c.out.name, c.num, c.workers) for c in calls] == [
-        ("train", 16, 2), ("val", 40, 2), ("unseen", 40, 2), ("ood", 40, 2), ("train-traj", 16, 2)]
+        ("train-traj", 16, 2), ("train", 16, 2), ("val", 40, 2), ("unseen", 40, 2), ("ood", 40, 2)]
     assert not (tmp_path / "b" / "dp3").exists() and not (tmp_path / "b" / "results.md").exists()
 
 

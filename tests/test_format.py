@@ -6,7 +6,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from tax3d.data.format import DemoError, grip_vertices, list_demos, load_demo, save_demo
+from tax3d.data.format import (DemoError, grip_vertices, is_valid_demo, list_demos, load_demo, save_demo,
+                               strip_trajectories)
 from tax3d.sim.cloth import SIMPLE_CLOTH
 
 from tests.conftest import make_demo
@@ -93,6 +94,25 @@ def test_truncated_file(tmp_path):
     path.write_bytes(path.read_bytes()[:100])
     with pytest.raises(DemoError, match="unreadable"):
         load_demo(path)
+
+
+def test_a_missing_or_broken_file_is_no_valid_demo_whatever_is_required(tmp_path):
+    path = tmp_path / "demo_0.npz"
+    assert not is_valid_demo(path) and not is_valid_demo(path, ("rot",))
+    save_demo(path, make_demo())
+    assert is_valid_demo(path) and is_valid_demo(path, ("rot", "anchors")) and not is_valid_demo(path, ("no_key",))
+    path.write_bytes(path.read_bytes()[:100])
+    assert not is_valid_demo(path)
+
+
+def test_a_demo_without_its_trajectories_is_the_same_demo(tmp_path):
+    demo = make_demo()
+    save_demo(tmp_path / "with.npz", {**demo, "traj_targets": np.ones((3, 2, 3), np.float32)})
+    strip_trajectories(tmp_path / "with.npz", tmp_path / "without.npz")
+    back = load_demo(tmp_path / "without.npz")
+    assert sorted(back) == sorted(demo)
+    assert all(np.array_equal(back[k], demo[k]) for k in ("action_pc", "anchor_pc", "flow", "rot", "trans"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["with.npz", "without.npz"]  # no temporary file left
 
 
 def test_the_core_alone_loads_and_the_simulator_keys_are_named_where_needed(tmp_path):

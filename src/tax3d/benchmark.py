@@ -87,7 +87,10 @@ def preset_of(args: Args) -> str:
 
 
 def _generate_data(args: Args) -> Path:
-    """train (NUM_TRAIN), val (NUM_VAL), and the test episodes of unseen and ood; only what is missing is made."""
+    """train (NUM_TRAIN), val (NUM_VAL), and the test episodes of unseen and ood; only what is missing is made. With
+    DP3 among the rows, train-traj comes first and train takes its demos without their trajectories: one simulation
+    of each training demo, and DP3 and TAX3D train on the very same demonstrations."""
+    from tax3d.data.format import is_valid_demo, strip_trajectories
     from tax3d.sim.generate import Args as GenerateArgs
     from tax3d.sim.generate import generate
     from tax3d.sim.tasks import get_task
@@ -97,9 +100,15 @@ def _generate_data(args: Args) -> Path:
     num_train = args.num_train or task.sizes["train"]
     plan = [("train", "train", 0, num_train), ("val", "val", 0, args.num_val),
             ("unseen", "unseen", args.first_index, args.episodes), ("ood", "ood", args.first_index, args.episodes)]
-    if "dp3" in _rows(args):
-        plan.append(("train", "train-traj", 0, num_train))  # the same demonstrations, with their trajectories
+    trajectories = "dp3" in _rows(args)
+    if trajectories:
+        plan.insert(0, ("train", "train-traj", 0, num_train))
     for split, folder, first, num in plan:
+        if trajectories and folder == "train":
+            (root / "train").mkdir(parents=True, exist_ok=True)
+            for name in (f"demo_{i}.npz" for i in range(first, first + num)):
+                if not is_valid_demo(root / "train" / name) and is_valid_demo(root / "train-traj" / name):
+                    strip_trajectories(root / "train-traj" / name, root / "train" / name)
         print(f"[benchmark] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / folder}",
               flush=True)
         stats = generate(GenerateArgs(task=args.task, split=split, first_index=first, num=num, out=root / folder,
