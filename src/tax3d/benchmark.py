@@ -100,15 +100,9 @@ def _generate_data(args: Args) -> Path:
     num_train = args.num_train or task.sizes["train"]
     plan = [("train", "train", 0, num_train), ("val", "val", 0, args.num_val),
             ("unseen", "unseen", args.first_index, args.episodes), ("ood", "ood", args.first_index, args.episodes)]
-    trajectories = "dp3" in _rows(args)
-    if trajectories:
+    if "dp3" in _rows(args):
         plan.insert(0, ("train", "train-traj", 0, num_train))
     for split, folder, first, num in plan:
-        if trajectories and folder == "train":
-            (root / "train").mkdir(parents=True, exist_ok=True)
-            for name in (f"demo_{i}.npz" for i in range(first, first + num)):
-                if not is_valid_demo(root / "train" / name) and is_valid_demo(root / "train-traj" / name):
-                    strip_trajectories(root / "train-traj" / name, root / "train" / name)
         print(f"[benchmark] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / folder}",
               flush=True)
         stats = generate(GenerateArgs(task=args.task, split=split, first_index=first, num=num, out=root / folder,
@@ -116,6 +110,11 @@ def _generate_data(args: Args) -> Path:
         if stats["failed"]:
             raise UsageError(f"--data {root / folder}: {len(stats['failed'])} demos failed after every attempt "
                              f"({' '.join(stats['failed'][:3])}); expected every index of the table")
+        if folder == "train-traj":  # train: the same files (generate validated them), trajectories left out
+            (root / "train").mkdir(parents=True, exist_ok=True)
+            for name in (f"demo_{i}.npz" for i in range(first, first + num)):
+                if (root / folder / name).is_file() and not is_valid_demo(root / "train" / name):
+                    strip_trajectories(root / folder / name, root / "train" / name)
     return root
 
 
