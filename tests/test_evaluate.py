@@ -130,7 +130,7 @@ def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
     assert default[0].offset is None and chosen[0].offset == (0.0, 0.0, 0.5)
 
     class Fixed:
-        def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=None):
+        def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=None, max_points=None):
             return np.asarray(cloth, dtype=float)[None] + 1.0
 
     class Env:
@@ -161,7 +161,7 @@ def test_the_policy_executes_the_first_sample():
     shifts = np.array([5.0, 1.0, 0.0, -4.0, 3.0])[:, None, None]
 
     class Spread:
-        def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=None):
+        def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=None, max_points=None):
             return np.asarray(cloth, dtype=float)[None] + shifts[:num_samples]
 
     class Env:
@@ -201,6 +201,33 @@ def test_sampler_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
         assert np.allclose(policy.first_prediction, expected)
         goals[sampler] = policy.first_prediction
     assert not np.allclose(goals["ddpm"], goals["ddim"])
+
+
+def test_max_points_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
+    from tax3d.evaluate import load_model, plan_jobs
+    from tax3d.policy import GoalPolicy
+
+    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].max_points is None
+    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, max_points=0))[0].max_points == 0
+    model = load_model(tiny_checkpoint(tmp_path / "epsilon"))  # trained on 64 action points
+    rng = np.random.default_rng(0)
+    cloth, anchor = rng.normal(size=(100, 3)), rng.normal(size=(30, 3))
+
+    class Env:
+        mesh = type("Mesh", (), {"grip_vertices": staticmethod(lambda: (0, 2))})()
+
+        def anchor_points(self):
+            return anchor
+
+    state = type("State", (), {"cloth": cloth})()
+    goals = {}
+    for points in (None, 0):
+        policy = GoalPolicy(model, num_samples=1, steps=3, seed=5, max_points=points)(Env(), state)
+        expected = model.predict(cloth, anchor, num_samples=1, steps=3, seed=5, max_points=points)
+        assert policy.first_prediction.shape == (1, 100, 3)
+        assert np.allclose(policy.first_prediction, expected)
+        goals[points] = policy.first_prediction
+    assert not np.allclose(goals[None], goals[0])
 
 
 def test_goal_options_need_the_demos_and_no_checkpoint(capsys, checkpoint, tmp_path):

@@ -145,7 +145,7 @@ def test_goal_policy_adds_the_task_offset_to_the_predicted_grip_vertices():
     from tax3d.policy import GoalPolicy
 
     class Predictor:
-        def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=0):
+        def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=0, max_points=None):
             return np.repeat((cloth + [1.0, 2.0, 3.0])[None], num_samples, axis=0)
 
     class Env:

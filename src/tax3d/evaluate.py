@@ -51,6 +51,9 @@ class Args:
     """denoising steps (default: the checkpoint's)"""
     sampler: Literal["ddpm", "ddim"] | None = None
     """ddpm or ddim (default: the checkpoint's diffusion.sampler)"""
+    max_points: Annotated[int | None, NonNegative] = None
+    """the network runs on at most this many action points, the others taking the displacement of their nearest
+    sampled ones (default: the number it was trained on; 0: every point; as `tax3d predict --max-points`)"""
     replan_every: Annotated[int, NonNegative] = 0
     """closed loop: predict again every K environment steps (0: open loop, the paper's policy)"""
     workers: Annotated[int, Positive] = 2
@@ -86,6 +89,7 @@ class EvalJob:
     samples: int = 1
     steps: int | None = None
     sampler: str | None = None
+    max_points: int | None = None
     replan_every: int = 0
     seed: int = 0
     denoising: bool = False
@@ -107,7 +111,7 @@ class FixedGoal:
         self.goal = goal
 
     def predict(self, action_points, anchor_points, num_samples=1, steps=None, sampler=None, seed=None,
-                return_trajectory=False):
+                return_trajectory=False, max_points=None):
         goal = self.goal.predict(action_points, anchor_points) if hasattr(self.goal, "predict") else self.goal
         goals = np.repeat(np.asarray(goal, dtype=np.float64)[None], num_samples, axis=0)
         return (goals, goals[None]) if return_trajectory else goals
@@ -151,7 +155,8 @@ def run_eval_job(job: EvalJob) -> dict:
         policy = DP3Policy(predictor, job.seed)
     else:
         policy = GoalPolicy(predictor, job.samples, job.steps, job.seed, job.replan_every, trajectory=job.denoising,
-                            offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler)
+                            offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler,
+                            max_points=job.max_points)
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
@@ -207,7 +212,7 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         split = get_split(split_name)
         folder = _split_folder(args.data, split.name)
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
-                      sampler=args.sampler, replan_every=args.replan_every, task=task.name, device=args.device,
+                      sampler=args.sampler, max_points=args.max_points, replan_every=args.replan_every, task=task.name, device=args.device,
                       offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset),
                       goal=args.goal, mean_goal=mean_goal)
         if folder is not None:

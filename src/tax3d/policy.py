@@ -18,9 +18,9 @@ class GoalPolicy:
 
     def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
                  replan_every: int = 0, trajectory: bool = False, offset=(0.0, 0.0, 0.0),
-                 sampler: str | None = None):
+                 sampler: str | None = None, max_points: int | None = None):
         self.predictor, self.num_samples, self.steps, self.seed = predictor, num_samples, steps, seed
-        self.sampler = sampler
+        self.sampler, self.max_points = sampler, max_points
         self.offset = np.asarray(offset, dtype=np.float64)
         self.replan_every, self.trajectory = replan_every, trajectory
         self.predict_seconds, self.predictions = 0.0, 0
@@ -39,11 +39,12 @@ class GoalPolicy:
         seed = self.seed + self.predictions
         if self.trajectory and self.predictions == 0:
             goals, path = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps,
-                                                 sampler=self.sampler, seed=seed, return_trajectory=True)
+                                                 sampler=self.sampler, seed=seed, return_trajectory=True,
+                                                 max_points=self.max_points)
             self.denoising = path[:, 0]
         else:
             goals = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps,
-                                           sampler=self.sampler, seed=seed)
+                                           sampler=self.sampler, seed=seed, max_points=self.max_points)
         self.predict_seconds += time.perf_counter() - start
         if self.predictions == 0:
             self.first_prediction = goals
