@@ -44,6 +44,7 @@ def test_no_command_prints_usage_and_fails(capsys):
     (["predict", "--checkpoint", "C", "--demos", "D", "--batch-scenes", "0"], "--batch-scenes 0"),
     (["eval", "--checkpoint", "C", "--replan-every", "-1"], "--replan-every -1"),
     (["eval", "--checkpoint", "C", "--first-index", "-5"], "--first-index -5"),
+    (["eval", "--checkpoint", "C", "--max-points", "-1"], "--max-points -1"),
     (["eval", "--checkpoint", "C", "--policy-offset", "nan", "0", "0"], "--policy-offset nan 0.0 0.0"),
     (["generate", "--render-every", "0"], "--render-every 0"),
     (["generate", "--num", "0"], "--num 0"),
