@@ -176,9 +176,23 @@ def test_the_policy_executes_the_first_sample():
     assert np.allclose(first.targets(state.cloth), state.cloth[[0, 2]] + 5.0)
 
 
+def _policy_goals(model, cloth, anchor, **options):
+    """The goals GoalPolicy predicts with these options in a stand-in scene, and what the model predicts with them."""
+    from tax3d.policy import GoalPolicy
+
+    class Env:
+        mesh = type("Mesh", (), {"grip_vertices": staticmethod(lambda: (0, 2))})()
+
+        def anchor_points(self):
+            return anchor
+
+    state = type("State", (), {"cloth": cloth})()
+    policy = GoalPolicy(model, num_samples=2, steps=3, seed=5, **options)(Env(), state)
+    return policy.first_prediction, model.predict(cloth, anchor, num_samples=2, steps=3, seed=5, **options)
+
+
 def test_sampler_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
     from tax3d.evaluate import load_model, plan_jobs
-    from tax3d.policy import GoalPolicy
 
     assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].sampler is None
     assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, sampler="ddim"))[0].sampler == "ddim"
@@ -186,47 +200,25 @@ def test_sampler_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
     model = load_model(tiny_checkpoint(tmp_path / "epsilon"))
     rng = np.random.default_rng(0)
     cloth, anchor = rng.normal(size=(40, 3)), rng.normal(size=(30, 3))
-
-    class Env:
-        mesh = type("Mesh", (), {"grip_vertices": staticmethod(lambda: (0, 2))})()
-
-        def anchor_points(self):
-            return anchor
-
-    state = type("State", (), {"cloth": cloth})()
     goals = {}
     for sampler in ("ddpm", "ddim"):
-        policy = GoalPolicy(model, num_samples=2, steps=3, seed=5, sampler=sampler)(Env(), state)
-        expected = model.predict(cloth, anchor, num_samples=2, steps=3, sampler=sampler, seed=5)
-        assert np.allclose(policy.first_prediction, expected)
-        goals[sampler] = policy.first_prediction
+        goals[sampler], expected = _policy_goals(model, cloth, anchor, sampler=sampler)
+        assert np.allclose(goals[sampler], expected)
     assert not np.allclose(goals["ddpm"], goals["ddim"])
 
 
 def test_max_points_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
     from tax3d.evaluate import load_model, plan_jobs
-    from tax3d.policy import GoalPolicy
 
     assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].max_points is None
     assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, max_points=0))[0].max_points == 0
     model = load_model(tiny_checkpoint(tmp_path / "epsilon"))  # trained on 64 action points
     rng = np.random.default_rng(0)
     cloth, anchor = rng.normal(size=(100, 3)), rng.normal(size=(30, 3))
-
-    class Env:
-        mesh = type("Mesh", (), {"grip_vertices": staticmethod(lambda: (0, 2))})()
-
-        def anchor_points(self):
-            return anchor
-
-    state = type("State", (), {"cloth": cloth})()
     goals = {}
     for points in (None, 0):
-        policy = GoalPolicy(model, num_samples=1, steps=3, seed=5, max_points=points)(Env(), state)
-        expected = model.predict(cloth, anchor, num_samples=1, steps=3, seed=5, max_points=points)
-        assert policy.first_prediction.shape == (1, 100, 3)
-        assert np.allclose(policy.first_prediction, expected)
-        goals[points] = policy.first_prediction
+        goals[points], expected = _policy_goals(model, cloth, anchor, max_points=points)
+        assert goals[points].shape == (2, 100, 3) and np.allclose(goals[points], expected)
     assert not np.allclose(goals[None], goals[0])
 
 
