@@ -212,7 +212,8 @@ def plan_jobs(args: Args) -> list[EvalJob]:
         split = get_split(split_name)
         folder = _split_folder(args.data, split.name)
         common = dict(checkpoint=str(args.checkpoint), samples=args.samples, steps=args.steps,
-                      sampler=args.sampler, max_points=args.max_points, replan_every=args.replan_every, task=task.name, device=args.device,
+                      sampler=args.sampler, max_points=args.max_points, replan_every=args.replan_every,
+                      task=task.name, device=args.device,
                       offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset),
                       goal=args.goal, mean_goal=mean_goal)
         if folder is not None:
