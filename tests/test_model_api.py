@@ -318,6 +318,22 @@ def test_large_clouds_run_the_network_on_a_sample_and_carry_its_displacements(va
         model.predict(action, anchor, max_points=-1)
 
 
+def test_the_config_sets_the_points_predict_runs_the_network_on(tmp_path):
+    """data.predict_points is predict's default max_points, kept with the weights; an explicit max_points wins."""
+    from tax3d.model.tax3d import Tax3D
+
+    model = tiny_model(num_action_points=16, predict_points=40)
+    action, anchor, _ = scene(0, n=200)
+    sampled = lambda m, **k: m._frames(action, anchor, m._generator(None, 4), **k)["carry"]["sampled"].shape[0]
+    assert sampled(model) == 40 and sampled(model, max_points=20) == 20
+    assert "carry" not in model._frames(action, anchor, model._generator(None, 4), max_points=0)
+    np.testing.assert_allclose(model.predict(action, anchor, seed=4), model.predict(action, anchor, seed=4,
+                                                                                    max_points=40), atol=1e-6)
+    model.save_pretrained(tmp_path / "weights")
+    assert sampled(Tax3D.from_pretrained(tmp_path / "weights")) == 40
+    assert sampled(tiny_model(num_action_points=16)) == 16  # unset: the training size
+
+
 @pytest.mark.parametrize("variant", ["sd", "sp"])
 def test_scene_variants_always_see_the_scene_they_trained_on(variant):
     """SD/SP put the frame's origin at the mean of the action and anchor points together: a denser action cloud would

@@ -72,6 +72,9 @@ class DataConfig:
     """action points sampled (farthest point sampling) per training sample"""
     num_anchor_points: Annotated[int, Positive] = 512
     """anchor points sampled per training sample"""
+    predict_points: Annotated[Optional[int], NonNegative] = None
+    """action points the network sees at prediction, farthest-point sampled, every other point moving with its
+    nearest ones: the default of `predict --max-points` and `eval --max-points` (none: num_action_points; 0: all)"""
     train_size: Annotated[int, Positive] = 400
     """samples per epoch (demos are repeated); an epoch holds every demo at least once"""
     subsets: Annotated[int, NonNegative] = 0
@@ -110,8 +113,8 @@ class TrainConfig:
     val_demos: Annotated[int, NonNegative] = 0
     """validate on the first this many val demos (0: all)"""
     val_points: Literal["whole", "sampled"] = "whole"
-    """the network's input at validation: the whole clouds, or the farthest-point sample of the training size that
-    `predict` takes by default, its displacements spread to every point (the RMSE is on whole clouds either way)"""
+    """the network's input at validation: the whole clouds, or the farthest-point sample that `predict` takes by
+    default (data.predict_points), its displacements spread to every point (the RMSE is on whole clouds either way)"""
     minutes: Annotated[float, NonNegative] = 0.0
     """plan the run to end after this many minutes on this machine: the step rate measured over the first steps
     fixes train.steps (and so the cosine schedule) then, timed again at every validation (tax3d.plan); config.json

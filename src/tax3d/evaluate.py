@@ -53,7 +53,8 @@ class Args:
     """ddpm or ddim (default: the checkpoint's diffusion.sampler)"""
     max_points: Annotated[int | None, NonNegative] = None
     """the network runs on at most this many action points, the others taking the displacement of their nearest
-    sampled ones (default: the number it was trained on; 0: every point; as `tax3d predict --max-points`)"""
+    sampled ones (default: the checkpoint's data.predict_points, else the number it was trained on; 0: every
+    point; as `tax3d predict --max-points`)"""
     replan_every: Annotated[int, NonNegative] = 0
     """closed loop: predict again every K environment steps (0: open loop, the paper's policy)"""
     workers: Annotated[int, Positive] = 2

@@ -63,8 +63,8 @@ class Args:
     """torch CPU threads (0: torch's default)"""
     max_points: Annotated[Optional[int], NonNegative] = None
     """the network runs on at most this many action points, the others taking the distance-weighted displacement of
-    their nearest sampled ones (default: the number it was trained on; 0: every point; SD/SP: always the number it
-    was trained on)"""
+    their nearest sampled ones (default: the checkpoint's data.predict_points, else the number it was trained on;
+    0: every point; SD/SP: always the number it was trained on)"""
     batch_scenes: Annotated[int, Positive] = 8
     """demos denoised together in one batch"""
     device: str = "cpu"

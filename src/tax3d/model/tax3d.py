@@ -149,8 +149,8 @@ class Tax3D(nn.Module):
         return points.to(device=self.device, dtype=torch.float32)
 
     def _frames(self, action_points, anchor_points, generator: torch.Generator, max_points: int | None = None) -> dict:
-        """The network's inputs for one scene. An action cloud of more than max_points (default: the training
-        size; 0: no limit) is farthest-point sampled to it; "carry" then holds, for each input point, its
+        """The network's inputs for one scene. An action cloud of more than max_points (default:
+        data.predict_points, else the training size; 0: no limit) is farthest-point sampled to it; "carry" then holds, for each input point, its
         CARRY_NEIGHBOURS nearest sampled points and their inverse-distance weights (`_carry`)."""
         action = self._points(action_points, "action_points")
         anchor = self._points(anchor_points, "anchor_points")
@@ -159,6 +159,8 @@ class Tax3D(nn.Module):
             anchor = anchor[farthest_point_sample(anchor, k, start=generator)]
         # SD/SP: the scene frame's origin is the mean of the cloud the network trained on (that many action and
         # anchor points); a denser action cloud would move it, so these variants always take the training size
+        if max_points is None:
+            max_points = self.config.data.predict_points
         limit = self.config.data.num_action_points if max_points is None or self.spec.scene else max_points
         carry = None
         if 0 < limit < action.shape[0]:
@@ -200,8 +202,8 @@ class Tax3D(nn.Module):
         """World-frame goal clouds (num_samples, N, 3) for action (N, 3) and anchor (M, 3) world points.
 
         Any N works, and the goal keeps the order of the action points. The network runs on at most
-        `max_points` of them (default: the number it was trained on; 0: all; SD/SP: always the number it was trained
-        on, whose mean is their frame's origin), farthest-point sampled; every other
+        `max_points` of them (default: data.predict_points, else the number it was trained on; 0: all; SD/SP:
+        always the number it was trained on, whose mean is their frame's origin), farthest-point sampled; every other
         point moves by the inverse-distance-weighted displacement of its nearest sampled points. The anchor is downsampled by FPS to the trained
         number of points. The samples are denoised together, in one batch. numpy in, numpy out; tensors in,
         tensors out. With return_trajectory, also the denoising trajectory in the world frame, (S + 1, num_samples,
