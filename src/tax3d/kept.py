@@ -23,6 +23,7 @@ KINDS: dict[str, tuple[tuple[int, ...], str]] = {
     "table-row": ((1,), "`tax3d benchmark --keep`"),
     "study": ((1,), "benchmarks/time_to_quality.py"),
     "samplers": ((1,), "benchmarks/samplers.py"),
+    "val-points": ((1,), "benchmarks/val_points.py"),
     "sampler-check": ((1,), "an earlier sampler comparison, today benchmarks/samplers.py"),
     "precision-parts": ((1,), "an earlier one-off study of where multimodal samples miss"),
     "success-by-rmse": ((1,), "benchmarks/success_by_rmse.py"),
