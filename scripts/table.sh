@@ -8,8 +8,9 @@
 # Each row is one `tax3d benchmark` command (60 minutes of training on one core, its weights chosen on val, its
 # test episodes scored once); a killed row resumes from runs/table/.../last when run again. First the demonstrations
 # of every named task's missing rows, made with both cores while nothing trains (data/<folder>, skipped where
-# present), then all those rows in one stream, two at a time: no demonstration is made beside a training row, and
-# a task with an odd number of rows shares its last pair with the next task's first row instead of idling a core.
+# present; a task whose demonstrations fail waits for the next start), then all those rows in one stream, two at a
+# time: no demonstration is made beside a training row, and a task with an odd number of rows shares its last pair
+# with the next task's first row instead of idling a core.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 TAX3D=${TAX3D:-.venv/bin/tax3d}
@@ -75,13 +76,17 @@ exec 9> runs/.table.lock
 flock -n 9 || { echo "scripts/table.sh: another queue holds runs/.table.lock; expected one at a time" >&2; exit 2; }
 export TAX3D MINUTES
 export -f row benchmark
-echo "$TASKS" | while read -r task num folder; do
+READY=$(echo "$TASKS" | while read -r task num folder; do  # the tasks whose demonstrations are all made
   rows=$(missing "$task" "$num" | paste -sd, -)
   [ -n "$rows" ] || continue
-  echo "$(date -u +%FT%TZ) data $task $num $folder ($rows)"
-  data "$task" "$num" "$folder" "$rows" >> "runs/logs/$task-$num-data.log" 2>&1 </dev/null \
-    || { echo "$(date -u +%FT%TZ) FAILED data $task $num (see runs/logs/$task-$num-data.log)"; exit 1; }
-done
-echo "$TASKS" | while read -r task num folder; do
+  echo "$(date -u +%FT%TZ) data $task $num $folder ($rows)" >&2
+  if data "$task" "$num" "$folder" "$rows" >> "runs/logs/$task-$num-data.log" 2>&1 </dev/null; then
+    echo "$task $num $folder"
+  else  # its rows wait for the next start; the other tasks' rows go on
+    echo "$(date -u +%FT%TZ) FAILED data $task $num, its rows skipped (see runs/logs/$task-$num-data.log)" >&2
+  fi
+done)
+[ -n "$READY" ] || exit 1
+echo "$READY" | while read -r task num folder; do
   missing "$task" "$num" | sed "s|^|$task $num $folder |"
 done | xargs -P 2 -L 1 bash -c 'row "$@"' row

@@ -99,6 +99,7 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
     plan = [(c.split, c.out.name, c.first_index, c.num, c.trajectories) for c in calls]
     assert plan == [("train", "train-traj", 0, 8, True), ("train", "train", 0, 8, False), ("val", "val", 0, 40, False),
                     ("unseen", "unseen", 100, 40, False), ("ood", "ood", 100, 40, False)]
+    assert {c.max_attempts for c in calls} == {benchmark.DATA_ATTEMPTS}
     for i in range(1, 8):
         with_traj, train = (load_demo(tmp_path / "data" / f / f"demo_{i}.npz") for f in ("train-traj", "train"))
         assert "traj_targets" in with_traj and not any(k.startswith("traj_") for k in train)

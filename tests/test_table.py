@@ -217,6 +217,27 @@ def test_the_table_script_makes_every_tasks_demonstrations_first_and_never_besid
     assert second.returncode == 2 and "another queue" in second.stderr
 
 
+def test_a_task_whose_demonstrations_fail_leaves_the_other_tasks_rows_running(tmp_path):
+    """The data step of one task fails: its rows wait for the next start, every other task's rows run."""
+    import shutil
+    import subprocess
+
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "table.sh", tmp_path / "scripts" / "table.sh")
+    fake = tmp_path / "fake-tax3d"
+    fake.write_text(f'#!/bin/bash\necho "$*" >> {tmp_path / "calls.txt"}\n'
+                    '[[ "$*" == *"--task hangbag "*"--data-only"* ]] && exit 2\nexit 0\n')
+    fake.chmod(0o755)
+    run = subprocess.run(["bash", "scripts/table.sh", "hangbag", "hangproccloth-simple"], cwd=tmp_path,
+                         env={"PATH": "/usr/bin:/bin", "TAX3D": str(fake)}, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "FAILED data hangbag 16, its rows skipped" in run.stdout + run.stderr
+    calls = (tmp_path / "calls.txt").read_text().splitlines()
+    rows = [c for c in calls if "--data-only" not in c]
+    assert rows and all("--task hangproccloth-simple " in c for c in rows)
+    assert len([c for c in calls if "--data-only" in c]) == 2
+
+
 def test_the_table_script_takes_the_named_tasks_in_their_order(tmp_path):
     import shutil
     import subprocess
