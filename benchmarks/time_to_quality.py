@@ -1,6 +1,6 @@
 """Validation RMSE against wall time: configurations trained side by side for the same minutes, one thread each.
 
-    python benchmarks/time_to_quality.py --minutes 60 --train data/unimodal/train --val data/unimodal/unseen \
+    python benchmarks/time_to_quality.py --minutes 60 --train data/unimodal/train --val data/unimodal/val \
         --run shipped "" --run x0 "--diffusion.loss x0" --out runs/ttq [--validations 12] [--val-demos 20]
 
 Each `--run NAME OPTIONS` is a `tax3d train --preset PRESET --train.minutes M` with its own extra options, started
