@@ -1,4 +1,4 @@
-"""Typed configuration: model, diffusion, data and training settings, and the named presets `paper` and `cpu`.
+"""Typed configuration: model, diffusion, data and training settings, and the named presets `paper`, `cpu` and `cpu-multimodal`.
 
 A run's configuration is a `Config`; presets are complete configs, and the command line overrides single fields
 with dotted options (`--model.variant cp --train.steps 2000`). Every run writes its resolved config as JSON next
@@ -158,9 +158,9 @@ def paper() -> Config:
 
 def cpu() -> Config:
     """The CPU recipe for HangProcCloth-simple and -unimodal and HangBag, a run planned with --train.minutes on one
-    core; each difference from `paper` is measured in docs/training.md (x_0 prediction under the v weighting, a
-    smaller DiT on 256 + 256 points, the grasped vertices weighted 16 in the loss, a ten-times learning rate, an EMA
-    of the weights, six validations on 20 val demos)."""
+    core; docs/training.md measures its differences from `paper` (the v weighting, a smaller DiT on 256 + 256
+    points, the grasped vertices weighted 16 in the loss, an EMA of the weights) and says which were chosen in runs
+    not kept (x_0 prediction, a ten-times learning rate); six validations on 20 val demos."""
     return Config(
         model=ModelConfig(hidden_size=64, depth=3, num_heads=4),
         diffusion=DiffusionConfig(prediction="sample", loss="v"),

@@ -40,8 +40,9 @@ class Args:
     splits: str = "train,unseen,ood"
     """comma-separated splits to evaluate"""
     data: Path | None = None
-    """folder with a demo sub-folder per split (train, unseen or val, ood): its episodes are replayed and their goals
-    scored; a split without a folder gets fresh anchor poses from the split's seeds (success only)"""
+    """folder with a demo sub-folder per split (train, val, unseen, ood; the official data's val_ood serves as ood):
+    its episodes are replayed and their goals scored; a split without a folder gets fresh anchor poses from the
+    split's seeds (success only)"""
     episodes: Annotated[int | None, Positive] = None
     """episodes per split (default: every demo of the split's folder, or the paper's size)"""
     samples: Annotated[int, Positive] = 1

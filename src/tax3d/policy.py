@@ -8,7 +8,8 @@ import numpy as np
 
 
 class GoalPolicy:
-    """Predict the goal once on the full action cloud; drive the grippers to the predicted grip vertices.
+    """Predict the goal of every action point once (the network on at most the checkpoint's predict_points of them);
+    drive the grippers to the predicted grip vertices.
 
     With replan_every = K > 0 it predicts again every K environment steps from the current cloth (closed loop,
     the paper's stated limitation; reported separately). `offset` is added to the predicted positions (HangBag:
