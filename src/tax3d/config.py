@@ -1,4 +1,5 @@
-"""Typed configuration: model, diffusion, data and training settings, and the named presets `paper`, `cpu` and `cpu-multimodal`.
+"""Typed configuration: model, diffusion, data and training settings, and the named presets `paper`, `cpu` and
+`cpu-multimodal`.
 
 A run's configuration is a `Config`; presets are complete configs, and the command line overrides single fields
 with dotted options (`--model.variant cp --train.steps 2000`). Every run writes its resolved config as JSON next

@@ -150,17 +150,18 @@ class Tax3D(nn.Module):
 
     def _frames(self, action_points, anchor_points, generator: torch.Generator, max_points: int | None = None) -> dict:
         """The network's inputs for one scene. An action cloud of more than max_points (default:
-        data.predict_points, else the training size; 0: no limit) is farthest-point sampled to it; "carry" then holds, for each input point, its
-        CARRY_NEIGHBOURS nearest sampled points and their inverse-distance weights (`_carry`)."""
+        data.predict_points, else the training size; 0: no limit) is farthest-point sampled to it; "carry" then
+        holds, for each input point, its CARRY_NEIGHBOURS nearest sampled points and their inverse-distance weights
+        (`_carry`)."""
         action = self._points(action_points, "action_points")
         anchor = self._points(anchor_points, "anchor_points")
         k = self.config.data.num_anchor_points
         if anchor.shape[0] > k:
             anchor = anchor[farthest_point_sample(anchor, k, start=generator)]
-        # SD/SP: the scene frame's origin is the mean of the cloud the network trained on (that many action and
-        # anchor points); a denser action cloud would move it, so these variants always take the training size
         if max_points is None:
             max_points = self.config.data.predict_points
+        # SD/SP: the scene frame's origin is the mean of the cloud the network trained on (that many action and
+        # anchor points); a denser action cloud would move it, so these variants always take the training size
         limit = self.config.data.num_action_points if max_points is None or self.spec.scene else max_points
         carry = None
         if 0 < limit < action.shape[0]:
