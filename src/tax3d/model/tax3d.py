@@ -204,9 +204,9 @@ class Tax3D(nn.Module):
 
         Any N works, and the goal keeps the order of the action points. The network runs on at most
         `max_points` of them (default: data.predict_points, else the number it was trained on; 0: all; SD/SP:
-        always the number it was trained on, whose mean is their frame's origin), farthest-point sampled; every other
-        point moves by the inverse-distance-weighted displacement of its nearest sampled points. The anchor is downsampled by FPS to the trained
-        number of points. The samples are denoised together, in one batch. numpy in, numpy out; tensors in,
+        always the number it was trained on, whose mean is their frame's origin), farthest-point sampled; every
+        other point moves by the inverse-distance-weighted displacement of its nearest sampled points. The anchor
+        is downsampled by FPS to the trained number of points. The samples are denoised together, in one batch. numpy in, numpy out; tensors in,
         tensors out. With return_trajectory, also the denoising trajectory in the world frame, (S + 1, num_samples,
         N, 3). `seed` makes a fresh generator; `generator` is used as given. `progress` shows a bar over the
         denoising steps.
