@@ -18,7 +18,7 @@ from tax3d.model.tax3d import Tax3D
 from tax3d.plan import Plan
 from tax3d.variants import VARIANTS
 
-from tests.conftest import TINY, read_log, synthetic_demo
+from tests.conftest import TINY, read_log, synthetic_demo, write_demos
 
 def test_overfits_one_demonstration(tmp_path, capsys):
     folder = tmp_path / "one"
@@ -426,11 +426,33 @@ def test_default_preset_fits_the_machine_and_long_runs_are_told(tmp_path, demos,
     assert main(["train", *args, "--out", str(tmp_path / "run"), "--data.train", str(demos),
                  "--train.steps", "30", "--train.val_every", "30", "--train.warmup_steps", "10"]) == 0
     err = capsys.readouterr().err
-    expected = "paper" if torch.cuda.is_available() else "cpu"
+    expected = "paper" if torch.cuda.is_available() else "cpu-fast"
     assert f"--preset not given: using {expected}" in err
     assert "note: 30 steps at this machine's rate take about" in err
     assert "trained 30 steps in" in err and "weights in" in err  # the closing line
     assert cfg.load(tmp_path / "run" / "config.json").train.lr == cfg.preset(expected).train.lr
+
+
+def test_a_cpu_fast_run_trains_on_128_points_and_predicts_and_validates_on_256(tmp_path):
+    """cpu-fast: batch 8 on 128 + 128 points; its weights predict with the network on 256 action points, and its
+    validation runs the network on the same 256, as predict does."""
+    write_demos(tmp_path / "demos", 3, n=300, m=200)
+    out = tmp_path / "run"
+    assert main(["train", "--preset", "cpu-fast", "--model.hidden_size", "16", "--model.depth", "1",
+                 "--out", str(out), "--data.train", str(tmp_path / "demos"), "--data.val", str(tmp_path / "demos"),
+                 "--train.steps", "4", "--train.val_every", "4", "--train.warmup_steps", "1",
+                 "--train.num_workers", "0", "--train.val_demos", "2"]) == 0
+    config = cfg.load(out / "config.json")
+    assert (config.train.batch_size, config.data.num_action_points, config.data.num_anchor_points) == (8, 128, 128)
+    model = Tax3D.from_pretrained(out / "best")
+    action, anchor = synthetic_demo(0, n=300, m=200)["action_pc"], synthetic_demo(0, n=300, m=200)["anchor_pc"]
+    frames = model._frames(action, anchor, model._generator(None, 0))
+    assert frames["carry"]["sampled"].shape[0] == 256
+    validated = [r for r in read_log(out) if "val_rmse" in r]
+    assert validated and math.isfinite(validated[-1]["val_rmse"])
+    assert validated[-1]["val_rmse"] == pytest.approx(
+        train.validate(model, [load_demo(f) for f in sorted((tmp_path / "demos").glob("*.npz"))[:2]],
+                       config.train.val_samples, seed=config.train.seed, points="sampled")["val_rmse"], rel=1e-5)
 
 
 def test_a_compiled_run_matches_an_eager_one(tmp_path, demos):

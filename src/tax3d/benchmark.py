@@ -50,7 +50,7 @@ class Args:
     appendix D (RD and RP on multimodal only) and both fixed goals"""
     out: Annotated[Path, OutputFolder] = Path("runs/benchmark")
     """output folder: data/<split>, <variant>/train, <variant>/eval, results.md"""
-    preset: Literal["cpu", "cpu-multimodal", "paper"] | None = None
+    preset: Literal["cpu", "cpu-multimodal", "cpu-fast", "paper"] | None = None
     """training settings of every row (default: the task's CPU recipe, cpu-multimodal on multimodal, else cpu)"""
     steps: Annotated[int | None, Positive] = None
     """training steps per row (default: the preset's; not with --minutes)"""

@@ -1,5 +1,5 @@
-"""Typed configuration: model, diffusion, data and training settings, and the named presets `paper`, `cpu` and
-`cpu-multimodal`.
+"""Typed configuration: model, diffusion, data and training settings, and the named presets `paper`, `cpu`,
+`cpu-multimodal` and `cpu-fast`.
 
 A run's configuration is a `Config`; presets are complete configs, and the command line overrides single fields
 with dotted options (`--model.variant cp --train.steps 2000`). Every run writes its resolved config as JSON next
@@ -179,7 +179,20 @@ def cpu_multimodal() -> Config:
     return config
 
 
-PRESETS = {"paper": paper, "cpu": cpu, "cpu-multimodal": cpu_multimodal}
+def cpu_fast() -> Config:
+    """`cpu` at batch 8 on 128 + 128 points, the network on 256 action points at prediction and validation: twice the
+    samples a second, and the `cpu` hour's validation RMSE in half an hour on HangProcCloth-unimodal and HangBag
+    (docs/results/training-speed.md). The steps without a --train.minutes plan take about half `cpu`'s time."""
+    config = cpu()
+    config.data.num_action_points = config.data.num_anchor_points = 128
+    config.data.predict_points = 256
+    config.train.batch_size = 8
+    config.train.steps, config.train.val_every = 8000, 1000
+    config.train.val_points = "sampled"
+    return config
+
+
+PRESETS = {"paper": paper, "cpu": cpu, "cpu-multimodal": cpu_multimodal, "cpu-fast": cpu_fast}
 TASK_PRESETS = {"hangproccloth-multimodal": "cpu-multimodal"}
 """the CPU preset of a task where it is not `cpu`"""
 
