@@ -445,8 +445,8 @@ def test_a_cpu_fast_run_trains_on_128_points_and_predicts_and_validates_on_256(t
     config = cfg.load(out / "config.json")
     assert (config.train.batch_size, config.data.num_action_points, config.data.num_anchor_points) == (8, 128, 128)
     model = Tax3D.from_pretrained(out / "best")
-    action, anchor = synthetic_demo(0, n=300, m=200)["action_pc"], synthetic_demo(0, n=300, m=200)["anchor_pc"]
-    frames = model._frames(action, anchor, model._generator(None, 0))
+    demo = synthetic_demo(0, n=300, m=200)
+    frames = model._frames(demo["action_pc"], demo["anchor_pc"], model._generator(None, 0))
     assert frames["carry"]["sampled"].shape[0] == 256
     validated = [r for r in read_log(out) if "val_rmse" in r]
     assert validated and math.isfinite(validated[-1]["val_rmse"])
