@@ -181,8 +181,9 @@ def cpu_multimodal() -> Config:
 
 def cpu_fast() -> Config:
     """`cpu` at batch 8 on 128 + 128 points, the network on 256 action points at prediction and validation: twice the
-    samples a second, and the `cpu` hour's validation RMSE in half an hour on HangProcCloth-unimodal and HangBag
-    (docs/results/training-speed.md). The steps without a --train.minutes plan take about half `cpu`'s time."""
+    samples a second; in half an hour it matched the `cpu` hour's success on HangProcCloth-unimodal and HangBag, and
+    its validation RMSE on unimodal (docs/results/training-speed.md). Without a --train.minutes plan its steps take
+    about half `cpu`'s time."""
     config = cpu()
     config.data.num_action_points = config.data.num_anchor_points = 128
     config.data.predict_points = 256
