@@ -178,6 +178,22 @@ def test_bf16_on_cpu_trains_with_finite_losses(tmp_path, runs):
     assert Tax3D.from_pretrained(out / "last").config.train.precision == "bf16"
 
 
+def test_bf16_on_cpu_matches_fp32_within_bfloat16_rounding(tmp_path, runs):
+    """The same seeded run under bf16 autocast and in fp32: the same batches and noise, so the losses differ only by
+    bfloat16's rounding of the network (8 bits of mantissa)."""
+    root, args, _, _ = runs
+    logs = {}
+    for precision in ("fp32", "bf16"):
+        out = tmp_path / precision
+        assert main(["train", *args, "--out", str(out), "--train.steps", "3", "--train.precision", precision]) == 0
+        logs[precision] = read_log(out)
+    assert [r["step"] for r in logs["bf16"]] == [r["step"] for r in logs["fp32"]] == [1, 2, 3]
+    for fp32, bf16 in zip(logs["fp32"], logs["bf16"]):
+        assert bf16["mse"] == pytest.approx(fp32["mse"], rel=0.05), fp32["step"]
+    # step 1 is equal (DiT's zero-initialised output layer); after it the network did run in bfloat16
+    assert logs["bf16"][-1]["mse"] != logs["fp32"][-1]["mse"]
+
+
 def test_bf16_autocasts_the_network_and_keeps_the_diffusion_maths_fp32(monkeypatch):
     model = tiny_model("cd").train()  # random weights: DiT's zero-initialised output layer would hide the casts
     demo = synthetic_demo(0)
