@@ -44,3 +44,9 @@ def test_every_shipped_checkpoint_config_loads():
 
     for path in sorted((Path(__file__).resolve().parents[1] / "checkpoints").glob("*/config.json")):
         cfg.load(path)
+
+
+def test_the_preset_option_names_every_preset():
+    import typing
+
+    assert typing.get_args(cfg.PresetName) == tuple(cfg.PRESETS)

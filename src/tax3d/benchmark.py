@@ -15,9 +15,10 @@ import shlex
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated
 
 from tax3d.atomic import write_json, write_text
+from tax3d.config import PresetName
 from tax3d.errors import UsageError
 from tax3d.options import NonNegative, OutputFolder, Positive
 from tax3d.table import ROW_KIND, ROW_VERSION
@@ -50,7 +51,7 @@ class Args:
     appendix D (RD and RP on multimodal only) and both fixed goals"""
     out: Annotated[Path, OutputFolder] = Path("runs/benchmark")
     """output folder: data/<split>, <variant>/train, <variant>/eval, results.md"""
-    preset: Literal["cpu", "cpu-multimodal", "cpu-fast", "paper"] | None = None
+    preset: PresetName | None = None
     """training settings of every row (default: the task's CPU recipe, cpu-multimodal on multimodal, else cpu)"""
     steps: Annotated[int | None, Positive] = None
     """training steps per row (default: the preset's; not with --minutes)"""

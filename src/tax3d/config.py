@@ -194,6 +194,8 @@ def cpu_fast() -> Config:
 
 
 PRESETS = {"paper": paper, "cpu": cpu, "cpu-multimodal": cpu_multimodal, "cpu-fast": cpu_fast}
+PresetName = Literal["paper", "cpu", "cpu-multimodal", "cpu-fast"]
+"""the names of PRESETS, as a command-line option's type"""
 TASK_PRESETS = {"hangproccloth-multimodal": "cpu-multimodal"}
 """the CPU preset of a task where it is not `cpu`"""
 

@@ -25,7 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal, Optional
+from typing import Annotated, Optional
 
 import numpy as np
 import torch
@@ -57,7 +57,7 @@ class Args:
 
     out: Annotated[str, OutputFolder] = "runs/tax3d"
     """output folder: config.json, log.jsonl, last/ and best/ checkpoints"""
-    preset: Optional[Literal["paper", "cpu", "cpu-multimodal", "cpu-fast"]] = None
+    preset: Optional[cfg.PresetName] = None
     """paper: the paper's settings (a GPU's work); cpu: the recipe that learns on one CPU core (cloths and the bag,
     the table's rows); cpu-multimodal: cpu with the x_0 loss, for two-hole cloths; cpu-fast: cpu's quality in half
     its minutes (cloths and the bag); default: paper where CUDA is available, else cpu-fast"""
