@@ -20,6 +20,7 @@ from tax3d.baselines.dp3.scheduler import DDIM, squaredcos_cap_v2_betas
 from tax3d.cli import main
 from tax3d.data.format import save_demo
 from tax3d.errors import UsageError
+from tax3d.plan import timing_step
 from tax3d.sim.cloth import SIMPLE_CLOTH
 
 from tests.conftest import one_line_error
@@ -251,8 +252,38 @@ def test_a_minutes_plan_fixes_the_steps_from_the_measured_rate(tmp_path, demos, 
     assert main(["train-dp3", "--data.train", str(demos), "--preset", "cpu", "--device", "cpu", "--data.task",
                  "hangproccloth-simple", "--train.minutes", "2", "--out", str(out)]) == 0
     steps = json.loads((out / "config.json").read_text())["train"]["steps"]
-    assert dp3_train.PLAN_STEPS < steps < 120 and [r["step"] for r in read_log(out)][-1] == steps
+    assert timing_step(tiny_config().train.warmup_steps) < steps < 120
+    assert [r["step"] for r in read_log(out)][-1] == steps
     assert f"planned {steps} steps for 2 minutes" in capsys.readouterr().err
+
+
+def test_a_minutes_plan_is_timed_again_at_every_save(tmp_path, demos, monkeypatch, capsys):
+    """Steps that slow down after the plan was made shorten the run at the next save of last/, as a `tax3d train`
+    plan is re-timed at its validations: the steps are recorded in config.json and the log line `replan`, the run
+    ends at them, near its minutes, and the learning rate still decays to the end."""
+    import itertools
+    import time
+
+    calls = itertools.count()
+
+    def clock() -> float:  # one second a call, then three: the steps after the plan take three times as long
+        n = next(calls)
+        return float(n if n < 40 else 40 + 3 * (n - 40))
+
+    monkeypatch.setattr(time, "time", clock)
+    monkeypatch.setitem(cfg.PRESETS, "cpu", lambda: tiny_config())
+    out = tmp_path / "run"
+    assert main(["train-dp3", "--data.train", str(demos), "--preset", "cpu", "--device", "cpu", "--data.task",
+                 "hangproccloth-simple", "--train.minutes", "4", "--out", str(out)]) == 0
+    log = read_log(out)
+    planned = next(r["plan"]["steps"] for r in log if "plan" in r)
+    replans = [r["replan"] for r in log if "replan" in r]
+    steps = json.loads((out / "config.json").read_text())["train"]["steps"]
+    assert replans and replans[0]["steps"] < planned and replans[-1]["steps"] == steps == log[-1]["step"]
+    assert log[-1]["seconds"] == pytest.approx(240, abs=15)
+    lrs = [r["lr"] for r in log]
+    assert lrs[-1] < 0.05 * max(lrs) and all(b <= a for a, b in zip(lrs[20:], lrs[21:]))
+    assert "re-planned" in capsys.readouterr().err
 
 
 def test_bad_inputs(tmp_path, capsys):

@@ -68,9 +68,9 @@ class TrainConfig:
     save_every: int = 5000
     """write last/ every this many steps (and at the end)"""
     minutes: float = 0.0
-    """plan the run to end after this many minutes on this machine: the step rate over the first PLAN_STEPS steps
-    fixes train.steps (and so the cosine schedule), recorded in config.json (0: use steps); the table gives DP3
-    the wall time of the TAX3D rows"""
+    """plan the run to end after this many minutes on this machine: the step rate of the first steps fixes
+    train.steps (and so the cosine schedule), timed again at every save, recorded in config.json (0: use steps);
+    the table gives DP3 the wall time of the TAX3D rows"""
     threads: int = 0
     """torch CPU threads (0: torch's default)"""
 

@@ -7,7 +7,9 @@ The options are the dotted config fields of `tax3d train` (`--model.*`, `--diffu
 OUT gets config.json, log.jsonl (one line per step) and last/: a checkpoint directory (config.json and
 model.safetensors, the EMA weights, for `tax3d eval --checkpoint OUT/last`) plus training_state.pt to resume from.
 A run whose OUT already holds last/ continues from it. Each step's batch, rotations, diffusion steps and noise come
-from a generator seeded by (seed, step), so a resumed run sees what an uninterrupted one would.
+from a generator seeded by (seed, step), so a resumed run sees what an uninterrupted one would. A `--train.minutes`
+run is planned as `tax3d train` plans one (tax3d.plan), with each save of last/ in the place of a validation: the
+first steps fix train.steps, and every save times it again.
 """
 
 from __future__ import annotations
@@ -34,12 +36,11 @@ from tax3d.data.format import data_task
 from tax3d.devices import pick_device
 from tax3d.errors import UsageError
 from tax3d.options import OutputFolder
-from tax3d.plan import cosine_lr
+from tax3d.plan import Plan, timing_step
 from tax3d.train import STATE_NAME, find_last, save_checkpoint, truncate_log
 
 ADAM_BETAS = (0.95, 0.999)  # DP3's optimiser settings (docs/dp3.md)
 EMA_POWER, EMA_MAX = 0.75, 0.9999  # DP3's EMA: decay 1 - (1 + step)^-0.75, capped
-PLAN_STEPS = 20  # a --train.minutes run times these steps (after the first, slower one) to fix train.steps
 
 
 @dataclass
@@ -109,6 +110,7 @@ def run(args: Args) -> int:
     model.to(device)
     ema = copy.deepcopy(model).requires_grad_(False)
     optimizer = torch.optim.AdamW(model.parameters(), lr=c.lr, betas=ADAM_BETAS, weight_decay=c.weight_decay)
+    plan = Plan(c.lr, c.warmup_steps, c.steps, c.save_every, c.minutes)
     step, elapsed = 0, 0.0
     if last is not None:
         state = torch.load(last / STATE_NAME, map_location=device, weights_only=True)
@@ -116,6 +118,7 @@ def run(args: Args) -> int:
         ema.load_weights(state["ema"], str(last / STATE_NAME))
         optimizer.load_state_dict(state["optimizer"])
         step, elapsed = int(state["step"]), float(state["elapsed"])
+        plan.load_state_dict(state.get("plan", {}))
         print(f"resuming {out} at step {step}", file=sys.stderr)
         truncate_log(out / "log.jsonl", step)
     out.mkdir(parents=True, exist_ok=True)
@@ -125,12 +128,20 @@ def run(args: Args) -> int:
     bar = tqdm(total=c.steps, initial=step, desc="train-dp3", dynamic_ncols=True)
     model.train()
     started = time.time() - elapsed
-    planning = c.minutes > 0 and step < PLAN_STEPS
-    if planning:
-        c.steps = max(c.steps, PLAN_STEPS)
+    if c.minutes > 0 and step < timing_step(c.warmup_steps):  # a planned run lasts until its first steps are timed
+        c.steps = plan.steps = max(c.steps, timing_step(c.warmup_steps))
+
+    def planned(message: str) -> None:
+        """The plan's steps into the configuration, config.json and the bar."""
+        c.steps, bar.total = plan.steps, plan.steps
+        c.save_every = min(c.save_every, c.steps)
+        write_text(out / "config.json", cfg.dumps(config))
+        print(message, file=sys.stderr)
+
     while step < c.steps:
+        plan.start_step(step)
         batch, t, noise = step_batch(dataset, config, step, device)
-        lr = cosine_lr(step, c.lr, c.warmup_steps, c.steps)
+        lr = plan.lr_at(step)
         for group in optimizer.param_groups:
             group["lr"] = lr
         loss = model.loss(batch, t, noise)
@@ -138,27 +149,27 @@ def run(args: Args) -> int:
         loss.backward()
         optimizer.step()
         step += 1
-        if planning and step == 1:
-            timed_from = time.time()
-        if planning and step == PLAN_STEPS:
-            planning = False
-            per_step = (time.time() - timed_from) / (PLAN_STEPS - 1)
-            c.steps = max(PLAN_STEPS, int((60 * c.minutes - (time.time() - started)) / per_step) + PLAN_STEPS)
-            c.save_every = min(c.save_every, c.steps)
-            write_text(out / "config.json", cfg.dumps(config))
-            bar.total = c.steps
-            print(f"planned {c.steps} steps for {c.minutes:g} minutes ({per_step:.3f} s per step)", file=sys.stderr)
         with torch.no_grad():
             decay = ema_decay(step)
             for e, p in zip(ema.parameters(), model.parameters()):
                 e.lerp_(p, 1.0 - decay)
         bar.update(1)
-        record = {"step": step, "loss": float(loss.detach()), "lr": lr, "seconds": round(time.time() - started, 2)}
+        record = {"step": step, "loss": float(loss.detach()), "lr": lr}
+        if c.minutes > 0 and plan.timing(step):
+            record["plan"] = plan.make(step, started, lambda: 0.0)
+            planned(f"planned {plan.steps} steps for {c.minutes:g} minutes ({plan.step_seconds:.3f} s per step)")
         if step % c.save_every == 0 or step == c.steps:
+            save_started = time.time()
             state = {"model": model.state_dict(), "ema": ema.state_dict(), "optimizer": optimizer.state_dict(),
-                     "step": step, "elapsed": time.time() - started}
+                     "step": step, "elapsed": time.time() - started, "plan": plan.state_dict()}
             save_checkpoint(out, "last", ema, ema.state_dict(), state)
             bar.set_postfix(loss=f"{record['loss']:.4f}")
+            replan = plan.retime(step, started, save_started)
+            if replan is not None:
+                record["replan"] = replan
+                planned(f"re-planned {plan.steps} steps for {c.minutes:g} minutes ({plan.step_seconds:.3f} s per "
+                        f"step since the last timing)")
+        record["seconds"] = round(time.time() - started, 2)
         log.write(json.dumps(record) + "\n")
         log.flush()
     bar.close()
