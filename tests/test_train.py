@@ -163,10 +163,11 @@ def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, demos, monke
 
 
 @pytest.mark.slow
-def test_ctrl_c_saves_last_and_the_rerun_resumes_there(tmp_path, demos):
-    """SIGINT to a real `tax3d train` (its whole process group, as a terminal's Ctrl-C, data worker included): last/
-    is written at the step reached, the run says which, exits 130; the rerun resumes there and says so, and the log
-    holds each step once."""
+@pytest.mark.parametrize("signum", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_saves_last_and_the_rerun_resumes_there(tmp_path, demos, signum):
+    """SIGINT (a terminal's Ctrl-C) or SIGTERM (a scheduler preempting the job) to a real `tax3d train`, its whole
+    process group, data worker included: last/ is written at the step reached, the run says which, exits 130; the
+    rerun resumes there and says so, and the log holds each step once."""
     import os
     import signal
     import subprocess
@@ -183,7 +184,7 @@ def test_ctrl_c_saves_last_and_the_rerun_resumes_there(tmp_path, demos):
     deadline = time.time() + 120
     while time.time() < deadline and not ((out / "log.jsonl").is_file() and len(read_log(out)) >= 3):
         time.sleep(0.2)
-    os.killpg(run.pid, signal.SIGINT)
+    os.killpg(run.pid, getattr(signal, signum))
     err = run.communicate(timeout=120)[1]
     assert run.returncode == 130, err[-2000:]
     step = torch.load(out / "last" / train.STATE_NAME, weights_only=True)["step"]

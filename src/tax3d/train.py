@@ -3,9 +3,9 @@
     tax3d train --preset cpu --out runs/cd --data.train DIR --data.val DIR [--model.variant cp --train.steps 2000]
 
 OUT gets config.json (the resolved configuration), log.jsonl (one line per logged step), last/ (config.json,
-model.safetensors and training_state.pt, rewritten atomically at every validation and on Ctrl-C) and best/ (the
-weights with the lowest validation min-of-samples RMSE); at its end, summary.json (the plan, every validation and the
-last step: kept JSON of kind "train-log", tax3d.kept). A run whose OUT already holds last/ continues from it; one
+model.safetensors and training_state.pt, rewritten atomically at every validation and on Ctrl-C or SIGTERM) and
+best/ (the weights with the lowest validation min-of-samples RMSE); at its end, summary.json (the plan, every
+validation and the last step: kept JSON of kind "train-log", tax3d.kept). A run whose OUT already holds last/ continues from it; one
 that starts afresh starts a fresh log.jsonl.
 
 Under torchrun (`torchrun --nproc_per_node N -m tax3d.cli train ...`, docs/scaling.md) each process takes its
@@ -274,31 +274,37 @@ def mean_losses(world: distributed.World, losses: dict, *flags: bool) -> tuple[d
 
 
 class Interruption:
-    """Ctrl-C (SIGINT) during training, deferred: the first sets `requested`, and the loop writes last/ and stops at
-    the end of its step; a second interrupts at once. Installed in the main thread only."""
+    """Ctrl-C (SIGINT) or SIGTERM (a scheduler preempting the job, a `kill`) during training, deferred: the first
+    sets `requested`, and the loop writes last/ and stops at the end of its step; a second interrupts at once.
+    Installed in the main thread only."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self):
-        self.requested, self.previous = False, None
+        self.requested, self.previous = False, {}
 
     def __enter__(self) -> "Interruption":
         if threading.current_thread() is threading.main_thread():
-            self.previous = signal.signal(signal.SIGINT, self.handle)
+            self.previous = {s: signal.signal(s, self.handle) for s in self.SIGNALS}
         return self
 
     def __exit__(self, *exc) -> None:
-        if self.previous is not None:
-            signal.signal(signal.SIGINT, self.previous)
+        for s, handler in self.previous.items():
+            signal.signal(s, handler)
 
     def handle(self, signum, frame) -> None:
         if self.requested:
             raise KeyboardInterrupt
         self.requested = True
-        print("\ninterrupt: stopping after this step to save last/ (Ctrl-C again to stop at once)", file=sys.stderr)
+        print(f"\n{signal.Signals(signum).name}: stopping after this step to save last/ (again to stop at once)",
+              file=sys.stderr)
 
 
 def ignore_interrupts(worker_id: int) -> None:
-    """A data worker leaves Ctrl-C to the training loop (which stops after its step, then ends the workers)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    """A data worker leaves Ctrl-C and SIGTERM to the training loop (which stops after its step, then ends the
+    workers)."""
+    for s in Interruption.SIGNALS:
+        signal.signal(s, signal.SIG_IGN)
 
 
 # --- the loop --------------------------------------------------------------------------------------------------
