@@ -5,8 +5,8 @@
 OUT gets config.json (the resolved configuration), log.jsonl (one line per logged step), last/ (config.json,
 model.safetensors and training_state.pt, rewritten atomically at every validation and on Ctrl-C or SIGTERM) and
 best/ (the weights with the lowest validation min-of-samples RMSE); at its end, summary.json (the plan, every
-validation and the last step: kept JSON of kind "train-log", tax3d.kept). A run whose OUT already holds last/ continues from it; one
-that starts afresh starts a fresh log.jsonl.
+validation and the last step: kept JSON of kind "train-log", tax3d.kept). A run whose OUT already holds last/
+continues from it; one that starts afresh starts a fresh log.jsonl.
 
 Under torchrun (`torchrun --nproc_per_node N -m tax3d.cli train ...`, docs/scaling.md) each process takes its
 share of every global batch, DistributedDataParallel averages the gradients, and rank 0 alone validates and writes.
