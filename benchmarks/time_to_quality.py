@@ -14,6 +14,9 @@ val_coverage_rmse: each cloth's goals against the samples of all its demos, appe
 
     python benchmarks/time_to_quality.py --collect NAME RUN_DIR "COMMAND" --out runs/finals
 
+`--threads N` gives each run N torch threads and N cores of its own instead of one: one run of two threads on both
+cores of a 2-core machine is the other way to spend them than two runs of one thread side by side.
+
 `--collect` (repeatable) trains nothing: it writes the same JSON for runs already made by `tax3d train
 --train.minutes M` (each run's folder and the command that made it), such as a finalist trained alone.
 
@@ -42,7 +45,7 @@ def train_command(args, name: str, options: str) -> list[str]:
     return [sys.executable, "-m", "tax3d.cli", "train", "--preset", args.preset, "--out", str(args.out / name),
             "--data.train", *args.train, "--data.val", *args.val, "--train.minutes", str(args.minutes),
             "--train.validations", str(args.validations), "--train.val-demos", str(args.val_demos),
-            "--train.val-samples", str(args.val_samples), "--train.threads", "1", "--data.task", args.task,
+            "--train.val-samples", str(args.val_samples), "--train.threads", str(args.threads), "--data.task", args.task,
             *shlex.split(options)]
 
 
@@ -109,26 +112,30 @@ def main() -> int:
     parser.add_argument("--validations", type=int, default=12)
     parser.add_argument("--val-demos", type=int, default=20)
     parser.add_argument("--val-samples", type=int, default=2)
+    parser.add_argument("--threads", type=int, default=1, help="torch threads and cores of each run")
     args = parser.parse_args()
     names = [name for name, _ in args.run]
-    if len(set(names)) != len(names):
-        parser.error(f"--run: names must differ, got {names}")
-    if args.minutes <= 0 or args.validations < 1 or args.val_demos < 1:
-        parser.error("--minutes, --validations and --val-demos must be positive")
-    for name in names:
-        if (args.out / name).exists():
-            parser.error(f"--out: {args.out / name} exists; expected a fresh folder for each run")
+    cores = sorted(os.sched_getaffinity(0))
+    wrong = (f"--run: names must differ, got {names}" if len(set(names)) != len(names)
+             else "--minutes, --validations, --val-demos and --threads must be positive"
+             if args.minutes <= 0 or args.validations < 1 or args.val_demos < 1 or args.threads < 1
+             else f"--threads: {args.threads} is more than the {len(cores)} core(s) this program may use"
+             if args.threads > len(cores)
+             else next((f"--out: {args.out / n} exists; expected a fresh folder for each run" for n in names
+                        if (args.out / n).exists()), None))
+    if wrong:
+        print(f"time_to_quality: {wrong}", file=sys.stderr)
+        return 2
     args.out.mkdir(parents=True, exist_ok=True)
 
     started = time.time()
     commands = {name: train_command(args, name, options) for name, options in args.run}
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    cores = sorted(os.sched_getaffinity(0))
+    env = {**os.environ, "OMP_NUM_THREADS": str(args.threads)}
     procs = {}
     for i, (name, command) in enumerate(commands.items()):
         log = open(args.out / f"{name}.stderr", "w")
-        # one core each (with its data worker, if any), so that no run borrows another's core
-        core = {cores[i % len(cores)]}
+        # cores of its own (with its data worker, if any), so that no run borrows another's core
+        core = {cores[(i * args.threads + j) % len(cores)] for j in range(args.threads)}
         procs[name] = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=log, env=env,
                                        preexec_fn=lambda core=core: os.sched_setaffinity(0, core))
     failed = [name for name, proc in procs.items() if proc.wait() != 0]
@@ -137,7 +144,8 @@ def main() -> int:
         return 1
     result = {
         "benchmark": "time_to_quality", "command": "python benchmarks/time_to_quality.py " + shlex.join(sys.argv[1:]),
-        "cores_per_run": 1 if len(args.run) <= len(cores) else len(cores) / len(args.run),
+        "cores_per_run": args.threads if len(args.run) * args.threads <= len(cores)
+        else len(cores) / len(args.run), "threads_per_run": args.threads,
         "minutes": args.minutes, "preset": args.preset, "train": args.train, "val": args.val,
         "val_demos": args.val_demos, "val_samples": args.val_samples, "machine": provenance.machine(),
         "date": provenance.today(), "wall_minutes": round((time.time() - started) / 60, 1),

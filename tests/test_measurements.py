@@ -123,3 +123,13 @@ def test_subnormal(tmp_path):
     assert kept["kind"] == "train-step-benchmark" and kept["rounds"] == 2
     assert all(t > 0 for t in kept["forward_backward_seconds"].values()) and kept["speedup_flushed"] > 0
     refused([script, "--run"], tmp_path / "missing", "no config.json", "--train", str(data))
+
+
+def test_time_to_quality_refuses_more_threads_than_its_cores(tmp_path):
+    """Each run's threads get cores of their own: asking for more than the program may use is refused before any
+    training starts."""
+    import os
+
+    too_many = str(len(os.sched_getaffinity(0)) + 1)
+    refused([str(ROOT / "benchmarks" / "time_to_quality.py"), "--out"], tmp_path / "out", "--threads",
+            "--minutes", "1", "--train", "t", "--val", "v", "--run", "a", "", "--threads", too_many)
