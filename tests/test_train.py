@@ -407,6 +407,33 @@ def test_a_plan_is_timed_again_at_every_validation(tmp_path, demos, monkeypatch)
     assert knee(out) == 40
 
 
+def test_a_resumed_plan_is_timed_again_from_where_it_resumed(tmp_path, demos, monkeypatch):
+    """A planned run killed after its first validation and resumed on a machine twice as fast re-plans at its next
+    validation from the steps since the resume, so that its minutes in all still end on time."""
+    fake_step_clock(monkeypatch, lambda n: 0.5)
+    out = tmp_path / "resumed"
+    args = ["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos), *PLANNED]
+    getitem = train.EpochItems.__getitem__
+    calls = {"n": 0}
+
+    def dying(self, key):  # killed while loading the batch of step 26 (last/ is at step 20, 10 s in)
+        calls["n"] += 1
+        if calls["n"] > 25 * 8:
+            raise KeyboardInterrupt
+        return getitem(self, key)
+
+    monkeypatch.setattr(train.EpochItems, "__getitem__", dying)
+    assert main(args) == 130
+    monkeypatch.setattr(train.EpochItems, "__getitem__", getitem)
+    fake_step_clock(monkeypatch, lambda n: 0.25)
+    assert main([*args, "--resume"]) == 0
+    log = read_log(out)
+    # at step 40, 10 + 5 s have passed; the 15 s left hold 60 more steps at 0.25 s
+    assert [(r["step"], r["replan"]["steps"]) for r in log if "replan" in r] == [(40, 100)]
+    assert log[-1]["step"] == 100 and log[-1]["seconds"] == pytest.approx(30.0)
+    assert cfg.load(out / "config.json").train.steps == 100 and knee(out) == 40
+
+
 def knee(out) -> int:
     """The step of the last re-plan, in the run's training state."""
     return torch.load(out / "last" / "training_state.pt", weights_only=True)["plan"]["knee"]

@@ -5,7 +5,8 @@ run times its first steps (inside the warm-up, where the learning rate does not 
 validation, and fixes its steps and val_every to end on time. At every validation after that it is timed again:
 steps that ran slower or faster shorten or lengthen it, the decay going on from its progress there (the knee), so
 that the learning rate neither jumps nor rises. The plan's measurements and knee are saved in the training state;
-train.steps and train.val_every in config.json hold what it planned.
+train.steps and train.val_every in config.json hold what it planned. A resumed run is timed again too, from the
+step it resumed at, so that its minutes in all (the earlier part's are saved) still end on time.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ class Plan:
     since: tuple[int, float] | None = None
     """(step, time) from which this process measures the step rate; not saved"""
     made: bool = False
-    """whether this process made the plan (a resumed run keeps it as it was)"""
+    """whether the plan is made and timed by this process (a resumed run's, from where it resumed)"""
 
     STATE = ("step_seconds", "val_seconds", "knee", "knee_progress")
 
@@ -91,6 +92,11 @@ class Plan:
         at = timing_step(self.warmup_steps)
         if self.since is None and not self.made and min(10, at - 1) <= step < at:
             self.since = (step, time.time())
+
+    def resume(self, step: int) -> None:
+        """At the start of a resumed run: a plan made before is timed again from this step (at the next timing)."""
+        if self.minutes > 0 and self.step_seconds > 0:
+            self.made, self.since = True, (step, time.time())
 
     def timing(self, step: int) -> bool:
         """Whether this step ends the timing of the first steps (only in a run that started before it)."""

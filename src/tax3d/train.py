@@ -410,6 +410,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                disable=not world.main)
     model.train()
     started = time.time() - elapsed
+    plan.resume(step)
     share = world.share(c.batch_size)
     interruption = interruption or Interruption()
 

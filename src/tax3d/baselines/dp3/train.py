@@ -128,6 +128,7 @@ def run(args: Args) -> int:
     bar = tqdm(total=c.steps, initial=step, desc="train-dp3", dynamic_ncols=True)
     model.train()
     started = time.time() - elapsed
+    plan.resume(step)
     if c.minutes > 0 and step < timing_step(c.warmup_steps):  # a planned run lasts until its first steps are timed
         c.steps = plan.steps = max(c.steps, timing_step(c.warmup_steps))
 
