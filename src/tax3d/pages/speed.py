@@ -59,12 +59,14 @@ class SpeedPage(MeasurementPage):
             runs = pair["runs"]
             marks = max(len(r["curve"]) for r in runs.values())
             plans = sorted({r["plan"]["minutes"] for r in runs.values() if r.get("plan")} or {pair["minutes"]})
+            threads = pair.get("threads_per_run", 1)
+            cores = "one core" if threads == 1 else f"{threads} cores and {threads} torch threads"
             if len(runs) == 1:
-                how = f"a {plans[0]:g}-minute plan on one core"
+                how = f"a {plans[0]:g}-minute plan on {cores}"
             elif len(plans) == 1:
-                how = f"{plans[0]:g}-minute plans, one core each, started together"
+                how = f"{plans[0]:g}-minute plans, {cores} each, started together"
             else:
-                how = f"plans of {' and '.join(f'{m:g}' for m in plans)} minutes, one core each, started together"
+                how = f"plans of {' and '.join(f'{m:g}' for m in plans)} minutes, {cores} each, started together"
             sampled = [n for n, r in runs.items() if r.get("config", {}).get("train", {}).get("val_points") == "sampled"]
             where = (f"; {', '.join(sampled)}: the network's input a farthest-point sample of its training size, the "
                      f"RMSE on whole clouds" if sampled else "")
