@@ -434,6 +434,31 @@ def test_a_resumed_plan_is_timed_again_from_where_it_resumed(tmp_path, demos, mo
     assert cfg.load(out / "config.json").train.steps == 100 and knee(out) == 40
 
 
+def test_a_run_resumed_after_a_replan_keeps_it(tmp_path, demos, monkeypatch):
+    """last/ is written after the validation's re-plan: a run killed before its next validation resumes with the
+    re-planned steps and knee, not with the plan from before them."""
+    fake_step_clock(monkeypatch, lambda n: 0.5 if n <= 12 else 1.0)  # re-planned to 36 steps at step 20
+    out = tmp_path / "replanned"
+    args = ["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos), *PLANNED]
+    getitem = train.EpochItems.__getitem__
+    calls = {"n": 0}
+
+    def dying(self, key):  # killed while loading the batch of step 26
+        calls["n"] += 1
+        if calls["n"] > 25 * 8:
+            raise KeyboardInterrupt
+        return getitem(self, key)
+
+    monkeypatch.setattr(train.EpochItems, "__getitem__", dying)
+    assert main(args) == 130
+    assert knee(out) == 20 and cfg.load(out / "last" / "config.json").train.steps == 36
+    monkeypatch.setattr(train.EpochItems, "__getitem__", getitem)
+    fake_step_clock(monkeypatch, lambda n: 1.0)
+    assert main([*args, "--resume"]) == 0
+    log = read_log(out)
+    assert log[-1]["step"] == 36 and log[-1]["seconds"] == pytest.approx(30.0) and knee(out) == 20
+
+
 def knee(out) -> int:
     """The step of the last re-plan, in the run's training state."""
     return torch.load(out / "last" / "training_state.pt", weights_only=True)["plan"]["knee"]

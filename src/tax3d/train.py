@@ -493,7 +493,6 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                     if record["val_rmse"] < best:
                         best = record["val_rmse"]
                         save_checkpoint(out, "best", model, weights(), None)
-                save_last()
                 shown = {"loss": f"{record['loss']:.4f}"}
                 if "val_rmse" in record:
                     shown["val"] = f"{record['val_rmse']:.3f}"
@@ -504,6 +503,8 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                 record["replan"] = replan
                 planned(f"re-planned {plan.steps} steps for {c.minutes:g} minutes ({plan.step_seconds:.3f} s per "
                         f"step since the last timing)")
+            if world.main:  # after the re-plan, so that a run resumed from here keeps it
+                save_last()
         if world.main:
             record["seconds"] = round(time.time() - started, 2)
             log.write(json.dumps(record) + "\n")

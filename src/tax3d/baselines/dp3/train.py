@@ -160,16 +160,15 @@ def run(args: Args) -> int:
             record["plan"] = plan.make(step, started, lambda: 0.0)
             planned(f"planned {plan.steps} steps for {c.minutes:g} minutes ({plan.step_seconds:.3f} s per step)")
         if step % c.save_every == 0 or step == c.steps:
-            save_started = time.time()
-            state = {"model": model.state_dict(), "ema": ema.state_dict(), "optimizer": optimizer.state_dict(),
-                     "step": step, "elapsed": time.time() - started, "plan": plan.state_dict()}
-            save_checkpoint(out, "last", ema, ema.state_dict(), state)
-            bar.set_postfix(loss=f"{record['loss']:.4f}")
-            replan = plan.retime(step, started, save_started)
+            replan = plan.retime(step, started, time.time())  # before the save, so that a resumed run keeps it
             if replan is not None:
                 record["replan"] = replan
                 planned(f"re-planned {plan.steps} steps for {c.minutes:g} minutes ({plan.step_seconds:.3f} s per "
                         f"step since the last timing)")
+            state = {"model": model.state_dict(), "ema": ema.state_dict(), "optimizer": optimizer.state_dict(),
+                     "step": step, "elapsed": time.time() - started, "plan": plan.state_dict()}
+            save_checkpoint(out, "last", ema, ema.state_dict(), state)
+            bar.set_postfix(loss=f"{record['loss']:.4f}")
         record["seconds"] = round(time.time() - started, 2)
         log.write(json.dumps(record) + "\n")
         log.flush()
