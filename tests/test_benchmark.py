@@ -62,6 +62,43 @@ def test_rows_are_scored_once_and_a_stop_between_rows_resumes(data, tmp_path, ca
     assert json.loads((tmp_path / "keep" / "cd.json").read_text())["test"]["scorings"] == 2
 
 
+def test_a_row_trained_again_after_a_fix_counts_its_trainings_and_scorings(data, tmp_path, capsys, monkeypatch):
+    """--retrain sets the scored weights aside and trains from the start; stopped before its scoring, the rerun
+    scores the new weights (not a third training), and the summary counts two trainings and two scorings. A row
+    scored in OUT whose copy in --keep was lost gets it back on a plain rerun."""
+    from tax3d import benchmark
+
+    args = Args(task="hangproccloth-simple", variants="cd", out=tmp_path / "bench", steps=2, episodes=1,
+                num_train=1, num_val=1, workers=1, data=data, keep=tmp_path / "keep")
+    assert run(args) == 0
+    first = json.loads((tmp_path / "keep" / "cd.json").read_text())
+    assert first["trainings"] == 1 and first["test"]["scorings"] == 1
+    score = benchmark._score
+
+    def stopped(*a):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(benchmark, "_score", stopped)
+    args.retrain, args.steps = True, 3
+    with pytest.raises(KeyboardInterrupt):
+        run(args)
+    aside = tmp_path / "bench" / "cd" / "train.replaced-1"
+    assert sha256(aside / first["weights"] / "model.safetensors") == first["weights_sha256"]
+    assert (tmp_path / "bench" / "cd" / "train" / "DONE").is_file()
+    monkeypatch.setattr(benchmark, "_score", score)
+    capsys.readouterr()
+    assert run(args) == 0
+    assert "training cd" not in capsys.readouterr().out and not (tmp_path / "bench" / "cd" / "train.replaced-2").exists()
+    second = json.loads((tmp_path / "keep" / "cd.json").read_text())
+    assert second["trainings"] == 2 and second["test"]["scorings"] == 2
+    assert second["weights_sha256"] != first["weights_sha256"] and second["validations"][-1]["step"] == 3
+
+    (tmp_path / "keep" / "cd.json").unlink()
+    args.retrain = False
+    assert run(args) == 0 and "scoring" not in capsys.readouterr().out
+    assert json.loads((tmp_path / "keep" / "cd.json").read_text()) == second
+
+
 def test_one_budget_and_the_multimodal_recipe(tmp_path, capsys):
     from tax3d.benchmark import preset_of
     from tax3d.cli import main

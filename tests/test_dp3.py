@@ -257,6 +257,35 @@ def test_a_minutes_plan_fixes_the_steps_from_the_measured_rate(tmp_path, demos, 
     assert f"planned {steps} steps for 2 minutes" in capsys.readouterr().err
 
 
+def test_a_planned_run_killed_and_resumed_ends_at_its_plan(tmp_path, demos, monkeypatch):
+    """last/ records the planned steps (not the preset's): a run killed after its plan resumes and trains on to the
+    plan's last step."""
+    import time
+
+    from tax3d.baselines.dp3 import train as dp3_train
+
+    clock = iter(range(100_000))
+    monkeypatch.setattr(time, "time", lambda: float(next(clock)))
+    monkeypatch.setitem(cfg.PRESETS, "cpu", lambda: tiny_config())
+    batch = dp3_train.step_batch
+
+    def dying(dataset, config, step, device):
+        if step == 21:
+            raise KeyboardInterrupt
+        return batch(dataset, config, step, device)
+
+    args = ["train-dp3", "--data.train", str(demos), "--preset", "cpu", "--device", "cpu", "--data.task",
+            "hangproccloth-simple", "--train.minutes", "2", "--out", str(tmp_path / "run")]
+    monkeypatch.setattr(dp3_train, "step_batch", dying)
+    assert main(args) == 130
+    saved = json.loads((tmp_path / "run" / "last" / "config.json").read_text())["train"]["steps"]
+    assert saved > 21 and saved == json.loads((tmp_path / "run" / "config.json").read_text())["train"]["steps"]
+    monkeypatch.setattr(dp3_train, "step_batch", batch)
+    assert main(args) == 0
+    steps = json.loads((tmp_path / "run" / "config.json").read_text())["train"]["steps"]
+    assert read_log(tmp_path / "run")[-1]["step"] == steps > 21
+
+
 def test_a_minutes_plan_is_timed_again_at_every_save(tmp_path, demos, monkeypatch, capsys):
     """Steps that slow down after the plan was made shorten the run at the next save of last/, as a `tax3d train`
     plan is re-timed at its validations: the steps are recorded in config.json and the log line `replan`, the run

@@ -3,13 +3,15 @@
 Every row (a variant) trains on the same demonstrations with the same preset and budget, keeps the weights that
 validate best on the `val` split, and is then scored once on the test episodes: `unseen` and `ood` demos from
 TEST_FIRST_INDEX on, which no choice has touched. A finished row's summary is written at once (to --keep too),
-and a rerun skips what is there, in OUT or in --keep: a row is never trained or scored again unless --rescore asks.
+and a rerun skips what is there, in OUT or in --keep: a row is never trained or scored again unless --rescore (score
+again) or --retrain (train again from the start, then score) asks, and its summary counts both.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import json
 import shlex
 import sys
@@ -77,6 +79,10 @@ class Args:
     rescore: bool = False
     """score rows on the test episodes again even where they have been (the count is kept in the summary); the
     row's trained weights must still be in OUT"""
+    retrain: bool = False
+    """train the rows again from the start (after a fix to their training) and score them again: the weights they
+    were scored with move to OUT/VARIANT/train.replaced-K, and the count of scorings goes on; a rerun after a kill
+    resumes the new training"""
     data_only: bool = False
     """only make the rows' demonstrations (train, val, the test episodes; train-traj for dp3), then stop: to make
     them once with more --workers than the rows are scored with"""
@@ -251,7 +257,7 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
     from tax3d.evaluate import evaluate
 
     row = _scored(args, variant)
-    if row is not None and not args.rescore:
+    if row is not None and not (args.rescore or args.retrain):
         return row
     print(f"[benchmark] scoring {variant} ({checkpoint or 'a fixed goal'}) on the test episodes", flush=True)
     summary = evaluate(EvalArgs(checkpoint=checkpoint, goal=FIXED_GOALS.get(variant, "model"), task=args.task,
@@ -273,6 +279,7 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
            "weights_sha256": summary["weights_sha256"], "validations": validations, "config": config,
            "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
                     "scorings": (row or {}).get("test", {}).get("scorings", 0) + 1},
+           "trainings": (row or {}).get("trainings", 1) + (row is not None and args.retrain),
            "splits": summary["splits"], "data_sha256": _data_digests(args, data),
            "command": command(), "machine": summary["machine"],
            "date": summary["date"]}
@@ -280,6 +287,23 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
     if args.keep is not None:
         write_json(args.keep / f"{variant}.json", row)
     return row
+
+
+def _set_aside(args: Args, variant: str) -> None:
+    """--retrain: move the finished training whose weights the row was scored with to train.replaced-K, so that the
+    row trains from the start; a training begun since (unfinished, or not yet scored) stays and goes on."""
+    from tax3d.checkpoint import WEIGHTS_NAME, sha256
+
+    row, run = _scored(args, variant), args.out / variant / "train"
+    if row is None or not (run / "DONE").is_file():
+        return
+    weights = run / row["weights"] / WEIGHTS_NAME
+    if weights.is_file() and sha256(weights) != row["weights_sha256"]:
+        return
+    k = next(k for k in itertools.count(1) if not (run.parent / f"train.replaced-{k}").exists())
+    run.rename(run.parent / f"train.replaced-{k}")
+    print(f"[benchmark] {variant}: the weights scored before are now in {run.parent / f'train.replaced-{k}'}; "
+          f"training again", flush=True)
 
 
 def command() -> str:
@@ -314,7 +338,7 @@ def _check(args: Args) -> list[str]:
         args.keep.mkdir(parents=True, exist_ok=True)
         for variant in variants:
             _kept(args, variant)  # a kept row of another task or size fails here, before any long work
-    for variant in variants if args.rescore else ():
+    for variant in variants if args.rescore and not args.retrain else ():
         run = args.out / variant / "train"
         if variant not in FIXED_GOALS and _scored(args, variant) is not None and not (run / "DONE").is_file():
             raise UsageError(f"--rescore: the weights {variant} was scored with are not in {run}; expected its "
@@ -331,12 +355,16 @@ def run(args: Args) -> int:
         return 0
     tables = {}
     for variant in variants:
-        scored = None if args.rescore else _scored(args, variant)
+        scored = None if args.rescore or args.retrain else _scored(args, variant)
         if scored is not None:
             print(f"[benchmark] {variant}: scored before, not trained or scored again (--rescore to score it)",
                   flush=True)
+            if args.keep is not None and _kept(args, variant) is None:  # scored in OUT, stopped before its copy
+                write_json(args.keep / f"{variant}.json", scored)
             tables[variant] = scored["splits"]
             continue
+        if args.retrain and variant not in FIXED_GOALS:
+            _set_aside(args, variant)
         checkpoint = None if variant in FIXED_GOALS else _train(args, variant, data)
         tables[variant] = _score(args, variant, checkpoint, data)["splits"]
     lines = [f"# {args.task}: {', '.join(variants)}", ""]

@@ -218,5 +218,6 @@ def commands(rows: dict[int, dict[str, dict]]) -> list[str]:
                         f" (unseen `{digests['unseen'][:12]}`, ood `{digests['ood'][:12]}`)")
             lines.append(f"- {NAMES.get(key, key)}, {demos} demos: `{row['command']}` on {row['machine']}, "
                          f"{row['date']}; {weights}; test episodes{episodes} scored {row['test']['scorings']} "
-                         "time(s)")
+                         "time(s)" + (f"; trained {row['trainings']} times, the earlier weights set aside by "
+                                      "`--retrain` after a fix" if row.get("trainings", 1) > 1 else ""))
     return lines

@@ -109,6 +109,7 @@ def run(args: Args) -> int:
     model.fit_normalizers(*dataset.normalizer_data())
     model.to(device)
     ema = copy.deepcopy(model).requires_grad_(False)
+    ema.config = config  # the run's own, so that last/ records the plan's steps
     optimizer = torch.optim.AdamW(model.parameters(), lr=c.lr, betas=ADAM_BETAS, weight_decay=c.weight_decay)
     plan = Plan(c.lr, c.warmup_steps, c.steps, c.save_every, c.minutes)
     step, elapsed = 0, 0.0
