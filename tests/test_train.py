@@ -407,24 +407,30 @@ def test_a_plan_is_timed_again_at_every_validation(tmp_path, demos, monkeypatch)
     assert knee(out) == 40
 
 
-def test_a_resumed_plan_is_timed_again_from_where_it_resumed(tmp_path, demos, monkeypatch):
-    """A planned run killed after its first validation and resumed on a machine twice as fast re-plans at its next
-    validation from the steps since the resume, so that its minutes in all still end on time."""
-    fake_step_clock(monkeypatch, lambda n: 0.5)
-    out = tmp_path / "resumed"
-    args = ["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos), *PLANNED]
+def killed_at_step(step: int, monkeypatch, args: list[str]) -> None:
+    """`tax3d train ARGS` killed while it loads the batch of `step` (TINY's batch of 8), as by a SIGKILL: last/
+    stays at the validation before."""
     getitem = train.EpochItems.__getitem__
     calls = {"n": 0}
 
-    def dying(self, key):  # killed while loading the batch of step 26 (last/ is at step 20, 10 s in)
+    def dying(self, key):
         calls["n"] += 1
-        if calls["n"] > 25 * 8:
+        if calls["n"] > (step - 1) * 8:
             raise KeyboardInterrupt
         return getitem(self, key)
 
     monkeypatch.setattr(train.EpochItems, "__getitem__", dying)
     assert main(args) == 130
     monkeypatch.setattr(train.EpochItems, "__getitem__", getitem)
+
+
+def test_a_resumed_plan_is_timed_again_from_where_it_resumed(tmp_path, demos, monkeypatch):
+    """A planned run killed after its first validation and resumed on a machine twice as fast re-plans at its next
+    validation from the steps since the resume, so that its minutes in all still end on time."""
+    fake_step_clock(monkeypatch, lambda n: 0.5)
+    out = tmp_path / "resumed"
+    args = ["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos), *PLANNED]
+    killed_at_step(26, monkeypatch, args)  # last/ is at step 20, 10 s in
     fake_step_clock(monkeypatch, lambda n: 0.25)
     assert main([*args, "--resume"]) == 0
     log = read_log(out)
@@ -440,19 +446,8 @@ def test_a_run_resumed_after_a_replan_keeps_it(tmp_path, demos, monkeypatch):
     fake_step_clock(monkeypatch, lambda n: 0.5 if n <= 12 else 1.0)  # re-planned to 36 steps at step 20
     out = tmp_path / "replanned"
     args = ["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos), *PLANNED]
-    getitem = train.EpochItems.__getitem__
-    calls = {"n": 0}
-
-    def dying(self, key):  # killed while loading the batch of step 26
-        calls["n"] += 1
-        if calls["n"] > 25 * 8:
-            raise KeyboardInterrupt
-        return getitem(self, key)
-
-    monkeypatch.setattr(train.EpochItems, "__getitem__", dying)
-    assert main(args) == 130
+    killed_at_step(26, monkeypatch, args)
     assert knee(out) == 20 and cfg.load(out / "last" / "config.json").train.steps == 36
-    monkeypatch.setattr(train.EpochItems, "__getitem__", getitem)
     fake_step_clock(monkeypatch, lambda n: 1.0)
     assert main([*args, "--resume"]) == 0
     log = read_log(out)
