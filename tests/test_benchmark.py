@@ -9,6 +9,7 @@ import pytest
 from tax3d import train
 from tax3d.benchmark import Args, demos_digest, run
 from tax3d.checkpoint import sha256
+from tax3d.errors import UsageError
 
 
 @pytest.fixture
@@ -63,8 +64,9 @@ def test_rows_are_scored_once_and_a_stop_between_rows_resumes(data, tmp_path, ca
 
 
 def test_a_row_trained_again_after_a_fix_counts_its_trainings_and_scorings(data, tmp_path, capsys, monkeypatch):
-    """--retrain sets the scored weights aside and trains from the start; stopped before its scoring, the rerun
-    scores the new weights (not a third training), and the summary counts two trainings and two scorings. A row
+    """--retrain sets the scored weights aside and trains from the start; stopped before its scoring, a plain rerun
+    is refused and the --retrain rerun scores the new weights (not a third training), and the summary counts two
+    trainings and two scorings. A row
     scored in OUT whose copy in --keep was lost gets it back on a plain rerun."""
     from tax3d import benchmark
 
@@ -86,6 +88,10 @@ def test_a_row_trained_again_after_a_fix_counts_its_trainings_and_scorings(data,
     assert sha256(aside / first["weights"] / "model.safetensors") == first["weights_sha256"]
     assert (tmp_path / "bench" / "cd" / "train" / "DONE").is_file()
     monkeypatch.setattr(benchmark, "_score", score)
+    args.retrain = False  # a plain rerun would report the old row for the new weights: refused
+    with pytest.raises(UsageError, match="--variants cd: .* begun by --retrain and not yet scored"):
+        run(args)
+    args.retrain = True
     capsys.readouterr()
     assert run(args) == 0
     assert "training cd" not in capsys.readouterr().out and not (tmp_path / "bench" / "cd" / "train.replaced-2").exists()

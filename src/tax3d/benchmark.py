@@ -289,6 +289,17 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
     return row
 
 
+def _retraining(args: Args, variant: str) -> bool:
+    """Whether OUT holds a training begun by --retrain whose weights the row has not yet been scored with."""
+    from tax3d.checkpoint import WEIGHTS_NAME, sha256
+
+    row, run = _scored(args, variant), args.out / variant / "train"
+    if row is None or row.get("weights") is None or not any(run.parent.glob("train.replaced-*")):
+        return False
+    weights = run / row["weights"] / WEIGHTS_NAME
+    return not weights.is_file() or sha256(weights) != row["weights_sha256"]
+
+
 def _set_aside(args: Args, variant: str) -> None:
     """--retrain: move the finished training whose weights the row was scored with to train.replaced-K, so that the
     row trains from the start; a training begun since (unfinished, or not yet scored) stays and goes on."""
@@ -338,6 +349,10 @@ def _check(args: Args) -> list[str]:
         args.keep.mkdir(parents=True, exist_ok=True)
         for variant in variants:
             _kept(args, variant)  # a kept row of another task or size fails here, before any long work
+    for variant in variants if not (args.rescore or args.retrain) else ():
+        if _retraining(args, variant):
+            raise UsageError(f"--variants {variant}: {args.out / variant / 'train'} holds a training begun by "
+                             f"--retrain and not yet scored; expected --retrain again, to finish it")
     for variant in variants if args.rescore and not args.retrain else ():
         run = args.out / variant / "train"
         if variant not in FIXED_GOALS and _scored(args, variant) is not None and not (run / "DONE").is_file():
