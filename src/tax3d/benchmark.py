@@ -289,27 +289,29 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
     return row
 
 
-def _retraining(args: Args, variant: str) -> bool:
-    """Whether OUT holds a training begun by --retrain whose weights the row has not yet been scored with."""
+def _trained_weights_sha(row: dict, run: Path) -> str | None:
+    """The sha256 of the weights file in `run` that the row names (best/ or last/), None where there is none."""
     from tax3d.checkpoint import WEIGHTS_NAME, sha256
 
+    weights = run / row["weights"] / WEIGHTS_NAME
+    return sha256(weights) if weights.is_file() else None
+
+
+def _retraining(args: Args, variant: str) -> bool:
+    """Whether OUT holds a training begun by --retrain whose weights the row has not yet been scored with."""
     row, run = _scored(args, variant), args.out / variant / "train"
     if row is None or row.get("weights") is None or not any(run.parent.glob("train.replaced-*")):
         return False
-    weights = run / row["weights"] / WEIGHTS_NAME
-    return not weights.is_file() or sha256(weights) != row["weights_sha256"]
+    return _trained_weights_sha(row, run) != row["weights_sha256"]
 
 
 def _set_aside(args: Args, variant: str) -> None:
     """--retrain: move the finished training whose weights the row was scored with to train.replaced-K, so that the
     row trains from the start; a training begun since (unfinished, or not yet scored) stays and goes on."""
-    from tax3d.checkpoint import WEIGHTS_NAME, sha256
-
     row, run = _scored(args, variant), args.out / variant / "train"
     if row is None or not (run / "DONE").is_file():
         return
-    weights = run / row["weights"] / WEIGHTS_NAME
-    if weights.is_file() and sha256(weights) != row["weights_sha256"]:
+    if _trained_weights_sha(row, run) not in (None, row["weights_sha256"]):
         return
     k = next(k for k in itertools.count(1) if not (run.parent / f"train.replaced-{k}").exists())
     run.rename(run.parent / f"train.replaced-{k}")
