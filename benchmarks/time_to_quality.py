@@ -116,15 +116,16 @@ def main() -> int:
     args = parser.parse_args()
     names = [name for name, _ in args.run]
     cores = sorted(os.sched_getaffinity(0))
-    wrong = (f"--run: names must differ, got {names}" if len(set(names)) != len(names)
-             else "--minutes, --validations, --val-demos and --threads must be positive"
-             if args.minutes <= 0 or args.validations < 1 or args.val_demos < 1 or args.threads < 1
-             else f"--threads: {args.threads} is more than the {len(cores)} core(s) this program may use"
-             if args.threads > len(cores)
-             else next((f"--out: {args.out / n} exists; expected a fresh folder for each run" for n in names
-                        if (args.out / n).exists()), None))
+    wrong = [message for bad, message in (
+        (len(set(names)) != len(names), f"--run: names must differ, got {names}"),
+        (min(args.minutes, args.validations, args.val_demos, args.threads) <= 0,
+         "--minutes, --validations, --val-demos and --threads must be positive"),
+        (args.threads > len(cores), f"--threads: {args.threads} is more than the {len(cores)} core(s) this program "
+                                    "may use"),
+        *(((args.out / n).exists(), f"--out: {args.out / n} exists; expected a fresh folder for each run")
+          for n in names)) if bad]
     if wrong:
-        print(f"time_to_quality: {wrong}", file=sys.stderr)
+        print(f"time_to_quality: {wrong[0]}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
 
