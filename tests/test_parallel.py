@@ -2,6 +2,7 @@
 
 import importlib.util
 import math
+import os
 
 import numpy as np
 import pytest
@@ -25,6 +26,18 @@ def test_local_backends_agree_and_keep_errors_per_job():
     inline, pool = collect("local", 1, jobs), collect("local", 2, jobs)
     assert inline == pool
     assert inline[0] == 2.0 and inline[2] == 3.0 and inline[1] == ("error", "ValueError")
+
+
+def pid(_job) -> int:
+    return os.getpid()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_fresh_runs_every_job_in_a_process_of_its_own(workers):
+    """What a PyBullet process simulated before must not reach the next job: generation asks for `fresh`."""
+    pids = [p for _, p, error in run_each(pid, range(4), workers, fresh=True) if error is None]
+    assert len(pids) == 4 and len(set(pids)) == 4 and os.getpid() not in pids
+    assert {p for _, p, _ in run_each(pid, range(4), 1)} == {os.getpid()}  # without it, one worker runs inline
 
 
 def test_bad_backend_options():

@@ -5,7 +5,9 @@
 The local pool (`spawn`, one simulator per worker process) is the default. `ray` runs the same function as Ray
 tasks, one CPU each, on a local Ray instance started here (workers = its CPUs) or on the cluster at `address`;
 Ray is an optional dependency (`pip install 'tax3d[ray]'`). A job that raises, or whose worker dies, comes back
-with its error instead of stopping the others.
+with its error instead of stopping the others. With `fresh=True` every job runs in a process of its own, on every
+backend and with one worker too: a PyBullet process carries state from one world to the next, so an episode's
+outcome depends on the episodes its process ran before it, and so on how jobs fell to workers.
 """
 
 from __future__ import annotations
@@ -33,19 +35,21 @@ def check_backend(backend: str, workers: int, address: str | None) -> None:
 
 
 def run_each(fn: Callable, jobs: Sequence, workers: int = 1, backend: str = "local",
-             address: str | None = None) -> Iterator[tuple[int, object, BaseException | None]]:
-    """Yield (job index, result, None) or (job index, None, error) for every job, in the order they finish."""
+             address: str | None = None, fresh: bool = False) -> Iterator[tuple[int, object, BaseException | None]]:
+    """Yield (job index, result, None) or (job index, None, error) for every job, in the order they finish; with
+    `fresh`, each job in a new process."""
     check_backend(backend, workers, address)
     if backend == "ray":
-        yield from _ray(fn, jobs, workers, address)
-    elif workers == 1:
+        yield from _ray(fn, jobs, workers, address, fresh)
+    elif workers == 1 and not fresh:
         for i, job in enumerate(jobs):
             try:
                 yield i, fn(job), None
             except Exception as err:
                 yield i, None, err
     else:
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                   max_tasks_per_child=1 if fresh else None)
         try:
             futures = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
             for future in as_completed(futures):
@@ -75,7 +79,7 @@ def _call(fn: Callable, job):
     return fn(job)
 
 
-def _ray(fn: Callable, jobs: Sequence, workers: int, address: str | None):
+def _ray(fn: Callable, jobs: Sequence, workers: int, address: str | None, fresh: bool = False):
     import ray
 
     started_here = not ray.is_initialized()
@@ -86,7 +90,7 @@ def _ray(fn: Callable, jobs: Sequence, workers: int, address: str | None):
         else:
             ray.init(address=address, log_to_driver=False)
     try:
-        task = ray.remote(num_cpus=1, max_retries=0)(_call)
+        task = ray.remote(num_cpus=1, max_retries=0, **({"max_calls": 1} if fresh else {}))(_call)
         fn_ref = ray.put(fn)
         refs = {task.remote(fn_ref, job): i for i, job in enumerate(jobs)}
         pending = list(refs)

@@ -227,7 +227,8 @@ def _run(jobs: list[Job], args: Args, progress: bool) -> list[JobResult]:
 
     bar = tqdm(total=len(jobs), desc="episodes", unit="cloth", disable=not progress or not jobs, file=sys.stderr)
     results = []
-    for _, result, error in run_each(run_job, jobs, args.workers, args.backend, args.address):
+    # a process of its own for each cloth: its demonstrations are then the same however the jobs fall to workers
+    for _, result, error in run_each(run_job, jobs, args.workers, args.backend, args.address, fresh=True):
         if error is not None:
             raise error
         results.append(result)
