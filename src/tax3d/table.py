@@ -192,8 +192,8 @@ def conclusions(paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
                     else "lower success" if metric == "success"
                     else f"{metric.replace('_', ' ')} over {claim.get('factor', 1.0):g}x")
             numbers = "; ".join(text for v, text in checks if v != MISSING) or "-"
-            on_paper = _verdict([_check(theirs, paper_rows, claim, w, t)[0] for w, t in pairs if t is not None])
-            on_paper = "-" if "reaches" in claim else on_paper
+            on_paper = "-" if "reaches" in claim else _verdict([_check(theirs, paper_rows, claim, w, t)[0]
+                                                                for w, t in pairs])
             table.append(f"| {claim['claim']} ({claim['where']}) | {test} | {numbers} | **{verdict}** | {on_paper} |")
         if table:
             lines += [f"{demos} training demonstrations:", "",
