@@ -76,6 +76,37 @@ def test_to_world_inverts_the_target(demo_dir, variant, rotate):
         close(s["goal"], goal[idx])
 
 
+@pytest.mark.parametrize("variant", ["cd", "cp", "sd"])
+def test_scene_rotation_turns_inputs_and_target_together(demo_dir, variant):
+    """The whole scene turned about z: every frame input and the target are the plain sample's, turned by one
+    angle (the object-centric frames make the cross-displacement equivariant), and to_world still gives the goal."""
+    _, demos = demo_dir
+    action, anchor, goal = clouds(demos[0])
+    spec = variant_spec(variant)
+    indices = (farthest_point_sample(torch.from_numpy(action), NA, start=gen(5)),
+               farthest_point_sample(torch.from_numpy(anchor), NB, start=gen(6)))
+    plain = make_sample(action, anchor, goal, spec, gen(7), indices=indices)
+    turned = make_sample(action, anchor, goal, spec, gen(7), indices=indices, rotate_scene=True)
+    angle = float(torch.atan2(turned["anchor"][0, 1], turned["anchor"][0, 0])
+                  - torch.atan2(plain["anchor"][0, 1], plain["anchor"][0, 0]))
+    assert abs(np.sin(angle)) > 1e-3
+    for key in ("action", "anchor", "target"):
+        close(turned[key], rotate_z(plain[key].double(), angle).float(), atol=1e-4)
+    close(to_world(turned["target"], turned, spec), turned["goal"])
+    if spec.object_centric:
+        close(turned["anchor_mean"], plain["anchor_mean"])  # the pivot is the anchor mean
+    assert not torch.allclose(turned["action_mean"], plain["action_mean"], atol=1e-3)
+
+
+def test_scene_rotation_is_drawn_per_sample_and_never_cached(demo_dir):
+    folder, _ = demo_dir
+    kwargs = dict(num_action_points=NA, num_anchor_points=NB, subsets=2, rotate=False, train_size=12)
+    turned = DemoDataset(folder, "cd", rotate_scene=True, **kwargs)
+    assert turned.cached is None and DemoDataset(folder, "cd", **kwargs).cached is not None
+    means = {tuple(turned[i]["action_mean"].tolist()) for i in range(0, 4 * len(turned.demos), len(turned.demos))}
+    assert len(means) == 4  # demo 0, four times, four turns
+
+
 def test_rotation_pivot_is_the_anchor_mean_except_world_frame(demo_dir):
     _, demos = demo_dir
     action, anchor, goal = clouds(demos[0])

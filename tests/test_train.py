@@ -117,6 +117,16 @@ def test_outputs_and_config(tmp_path, demos):
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary folders left
 
 
+def test_keep_every_keeps_the_weights_of_those_validations(tmp_path, demos):
+    out = tmp_path / "run"
+    assert main(["train", *TINY, "--out", str(out), "--data.train", str(demos), "--data.val", str(demos),
+                 "--train.steps", "6", "--train.val_every", "2", "--train.keep_every", "4"]) == 0
+    assert sorted(p.name for p in (out / "steps").iterdir()) == ["4"]
+    kept_weights = load_file(out / "steps" / "4" / "model.safetensors")
+    assert cfg.load(out / "steps" / "4" / "config.json").train.keep_every == 4
+    assert any(not torch.equal(v, load_file(out / "last" / "model.safetensors")[k]) for k, v in kept_weights.items())
+
+
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_every_variant_trains_and_predicts(tmp_path, demos, variant):
     out = tmp_path / variant

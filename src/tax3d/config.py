@@ -81,7 +81,10 @@ class DataConfig:
     subsets: Annotated[int, NonNegative] = 0
     """farthest-point subsets sampled once per demo, an item picking one at random (0: sample afresh each time)"""
     rotate: bool = True
-    """rotate anchor and goal about z by U(0, 2 pi) in training"""
+    """rotate anchor and goal about z by U(0, 2 pi) in training (App. B)"""
+    rotate_scene: bool = False
+    """rotate the whole scene (action, anchor and goal) about z through the anchor mean by U(0, 2 pi) in training, as
+    the authors' release does (random_flat_upright)"""
     grip_weight: Annotated[float, Positive] = 1.0
     """the loss weight of the grasped vertices (where the policy's grippers go) against 1 for every other point"""
     task: str = ""
@@ -120,6 +123,9 @@ class TrainConfig:
     """plan the run to end after this many minutes on this machine: the step rate measured over the first steps
     fixes train.steps (and so the cosine schedule) then, timed again at every validation (tax3d.plan); config.json
     records the planned steps (0: use steps)"""
+    keep_every: Annotated[int, NonNegative] = 0
+    """also keep the weights of each validation at a multiple of this many steps, in OUT/steps/STEP (a curve's
+    checkpoints, to score later; 0: only best/ and last/)"""
     validations: Annotated[int, NonNegative] = 0
     """with train.minutes: validate this many times, evenly over the planned steps (0: every val_every steps)"""
     time_limit: Annotated[float, NonNegative] = 0.0

@@ -357,6 +357,7 @@ def run(args: Args) -> int:
     dtype = pick_precision(c.precision, device)
 
     dataset = DemoDataset(config.data.train, config.model.variant, train=True, rotate=config.data.rotate,
+                          rotate_scene=config.data.rotate_scene,
                           num_action_points=config.data.num_action_points,
                           num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size,
                           seed=c.seed, subsets=config.data.subsets,
@@ -493,6 +494,9 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                     if record["val_rmse"] < best:
                         best = record["val_rmse"]
                         save_checkpoint(out, "best", model, weights(), None)
+                if c.keep_every and step % c.keep_every == 0:
+                    (out / "steps").mkdir(exist_ok=True)
+                    save_checkpoint(out / "steps", str(step), model, weights(), None)
                 shown = {"loss": f"{record['loss']:.4f}"}
                 if "val_rmse" in record:
                     shown["val"] = f"{record['val_rmse']:.3f}"

@@ -57,12 +57,15 @@ def make_sample(
     num_anchor_points: int | None = 512,
     rotate: bool = False,
     indices: tuple[torch.Tensor, torch.Tensor] | None = None,
+    rotate_scene: bool = False,
 ) -> dict:
     """One training sample from world-frame action (N, 3), anchor (M, 3) and goal (N, 3) points.
 
     FPS picks num_action_points and num_anchor_points (None: all points, in order). With `rotate`, the
     anchor and the goal turn about z by U(0, 2 pi) and the action does not (docs/reference.md, Training): the
-    result is a new scene, and `goal` is that scene's world-frame goal. `indices` (action rows, anchor rows) given
+    result is a new scene, and `goal` is that scene's world-frame goal. With `rotate_scene`, first the whole scene
+    (action, anchor and goal) turns about z by U(0, 2 pi), the authors' release's `random_flat_upright` transform: a
+    scene the policy could meet, where anchor rotation makes one whose goal no demonstration shows. `indices` (action rows, anchor rows) given
     replace the sampling. Returns float32 tensors (plus the int64 action_idx); see `DemoDataset` for the keys.
     """
     spec = variant_spec(spec)
@@ -77,6 +80,9 @@ def make_sample(
     # The pivot is the anchor mean (the rotation happens in the anchor frame), except for -W, which has no
     # object frame: there the scene turns about the world origin.
     pivot = anchor.mean(0) if (spec.object_centric or spec.scene) else anchor.new_zeros(3)
+    if rotate_scene:
+        turn = random_angle(generator)
+        action, anchor, goal = (rotate_z(x - pivot, turn) + pivot for x in (action, anchor, goal))
     angle = random_angle(generator) if rotate else 0.0
     if rotate:
         anchor = rotate_z(anchor - pivot, angle) + pivot
@@ -152,6 +158,7 @@ class DemoDataset(Dataset):
         *,
         train: bool = True,
         rotate: bool | None = None,
+        rotate_scene: bool = False,
         num_action_points: int | None = 512,
         num_anchor_points: int | None = 512,
         train_size: int | None = None,
@@ -164,6 +171,7 @@ class DemoDataset(Dataset):
         if train_size is not None and train_size < 1:
             raise UsageError(f"train_size is {train_size}; expected a positive number of samples per epoch")
         self.rotate = train if rotate is None else rotate
+        self.rotate_scene = bool(rotate_scene)
         self.num_action_points = num_action_points
         self.num_anchor_points = num_anchor_points
         self.train_size = train_size
@@ -187,7 +195,7 @@ class DemoDataset(Dataset):
             raise UsageError(f"subsets is {subsets}; expected 0 (sample points afresh) or a positive number")
         self.subsets = [self._subsets(d, subsets) for d in range(len(self.demos))] if subsets else None
         self.cached = None
-        if self.subsets is not None and not self.rotate:
+        if self.subsets is not None and not (self.rotate or self.rotate_scene):
             self.cached = [[self._sample(d, idx, None) for idx in demo] for d, demo in enumerate(self.subsets)]
 
     def _subsets(self, demo_index: int, count: int) -> list[tuple[torch.Tensor, torch.Tensor]]:
@@ -204,7 +212,7 @@ class DemoDataset(Dataset):
         action, anchor, goal = self.demos[demo_index]
         sample = make_sample(
             action, anchor, goal, self.spec, generator,
-            self.num_action_points, self.num_anchor_points, self.rotate, indices,
+            self.num_action_points, self.num_anchor_points, self.rotate, indices, self.rotate_scene,
         )
         sample["demo_index"] = torch.tensor(demo_index, dtype=torch.int64)
         if self.grip_weight != 1.0:
