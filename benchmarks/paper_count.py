@@ -14,7 +14,7 @@ steps stay in OUT/NAME/steps/STEP for scoring the policy later. Arms start toget
 where it stopped. The arms of one call share the machine's load: compare them with each other, not across calls.
 
 `--keep FILE` writes the curves (also every few minutes while the arms train, and with `--collect` alone, which
-trains nothing): kept JSON of kind "study", per arm its command, configuration, and at each validation the step,
+trains nothing): kept JSON of kind "paper-count", per arm its command, configuration, and at each validation the step,
 samples seen, training hours on its core, val_rmse (min over --val-samples samples), val_rmse_mean (one sample, as
 the policy acts) and the mean training loss since the validation before; with the data digests of both folders.
 """
@@ -90,7 +90,7 @@ def write_keep(args, commands: dict) -> None:
               "val_samples": args.val_samples, "digests": args.digests, "machine": provenance.machine(),
               "date": provenance.today(), "cores_per_arm": 1, "arms": arms}
     args.keep.parent.mkdir(parents=True, exist_ok=True)
-    write_json(args.keep, kept.stamp("study", result), indent=1)
+    write_json(args.keep, kept.stamp("paper-count", result), indent=1)
 
 
 def main() -> int:

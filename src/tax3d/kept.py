@@ -22,6 +22,7 @@ KINDS: dict[str, tuple[tuple[int, ...], str]] = {
     "predict": ((1,), "`tax3d predict --summary`"),
     "table-row": ((1,), "`tax3d benchmark --keep`"),
     "study": ((1,), "benchmarks/time_to_quality.py"),
+    "paper-count": ((1,), "benchmarks/paper_count.py"),
     "samplers": ((1,), "benchmarks/samplers.py"),
     "val-points": ((1,), "benchmarks/val_points.py"),
     "sampler-check": ((1,), "an earlier sampler comparison, today benchmarks/samplers.py"),
