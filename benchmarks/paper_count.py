@@ -81,11 +81,21 @@ def curve(folder: Path) -> dict:
             "kept_steps": steps, "curve": points}
 
 
+def without_hours(argv: list[str]) -> list[str]:
+    """The command line less `--hours H` and `--collect`, which only say when this call stops and whether it trains:
+    every call resumes the same arms."""
+    out = [a for a in argv if a != "--collect"]
+    while "--hours" in out:
+        at = out.index("--hours")
+        del out[at:at + 2]
+    return [a for a in out if not a.startswith("--hours=")]
+
+
 def write_keep(args, commands: dict) -> None:
     arms = {name: {"options": options, "command": shlex.join(commands[name]), **curve(args.out / name)}
             for name, options in args.arm}
     result = {"study": "paper_count", "task": args.task, "num_train": args.num_train, "preset": args.preset,
-              "command": "python benchmarks/paper_count.py " + shlex.join(a for a in sys.argv[1:]),
+              "command": "python benchmarks/paper_count.py " + shlex.join(without_hours(sys.argv[1:])),
               "train": str(args.train), "val": str(args.val), "val_demos": args.val_demos,
               "val_samples": args.val_samples, "digests": args.digests, "machine": provenance.machine(),
               "date": provenance.today(), "cores_per_arm": 1, "arms": arms}

@@ -22,6 +22,7 @@ from tax3d.pages import plots
 from tax3d.pages.card import CardsPage
 from tax3d.pages.official import OfficialPage
 from tax3d.pages.page import Page
+from tax3d.pages.paper_count import PaperCountPage
 from tax3d.pages.sim import SimPage
 from tax3d.pages.speed import SpeedPage
 from tax3d.pages.study import StudyPage
@@ -29,7 +30,7 @@ from tax3d.pages.task import TaskPage, readme_table
 
 ROOT = Path(__file__).resolve().parents[2]
 RENDERERS: dict[str, type[Page]] = {"task": TaskPage, "sim": SimPage, "official": OfficialPage, "speed": SpeedPage,
-                                    "training": StudyPage, "cards": CardsPage}
+                                    "training": StudyPage, "cards": CardsPage, "paper-count": PaperCountPage}
 MARKERS = ("<!-- results -->", "<!-- /results -->")
 
 

@@ -80,3 +80,27 @@ def validation_curves(runs: list[tuple[str, list[float], list[float]]], floor: f
     ax.grid(alpha=0.3)
     fig.tight_layout()
     return _png(fig, source)
+
+
+def sample_curves(runs: list[tuple[str, list[float], list[float]]], marks: list[tuple[str, float]],
+                  floor: float | None, ylabel: str) -> bytes:
+    """Validation RMSE against training samples seen (log scale), one line a run (label, samples, RMSE), each mark
+    (label, samples) a vertical line, the mean-goal floor dashed."""
+    source = {"plot": "sample-curves", "version": 1, "runs": [list(r) for r in runs], "marks": [list(m) for m in marks],
+              "floor": floor, "ylabel": ylabel}
+    fig = _figure(8.4, 3.8)
+    ax = fig.add_subplot()
+    for label, samples, rmse in runs:
+        ax.plot(samples, rmse, marker="o", markersize=3, label=label)
+    for k, (label, samples) in enumerate(marks):
+        ax.axvline(samples, color="black" if k else "grey", linestyle=":", label=label)
+    if floor is not None:
+        ax.axhline(floor, color="grey", linestyle="--", label="mean-goal floor")
+    ax.set_xscale("log")
+    ax.set_xlabel("training samples seen (steps x batch)")
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return _png(fig, source)
