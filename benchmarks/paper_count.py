@@ -38,6 +38,7 @@ from tax3d.checkpoint import read_log
 from tax3d.data.format import list_demos
 
 WRITE_EVERY = 300  # seconds between two writes of --keep while the arms train
+OPTIONAL = ("val_grip_error", "val_coverage_rmse", "val_precision_rmse")  # logged where the demos allow
 
 
 def train_files(args) -> list[Path]:
@@ -71,7 +72,7 @@ def curve(folder: Path) -> dict:
         if "val_rmse" in r:
             points.append({"step": r["step"], "samples": r["step"] * batch, "hours": round(r["seconds"] / 3600, 3),
                            "val_rmse": r["val_rmse"], "val_rmse_mean": r["val_rmse_mean"],
-                           **{k: r[k] for k in ("val_grip_error", "val_coverage_rmse") if k in r},
+                           **{k: r[k] for k in OPTIONAL if k in r},
                            "train_mse": sum(losses) / len(losses) if losses else None})
             losses = []
     steps = sorted(int(p.name) for p in (folder / "steps").iterdir()) if (folder / "steps").is_dir() else []

@@ -316,6 +316,11 @@ def test_validation_reports_coverage_where_demos_share_an_observation():
     record = train.validate(_FixedSamples(samples), [first, second, other], num_samples=2, seed=0)
     assert record["val_rmse"] == pytest.approx((2 * 3 * 3**0.5 + 3**0.5) / 3)  # both cloth samples at the wrong hole
     assert record["val_coverage_rmse"] == pytest.approx(3**0.5 / 2)  # the cloth covered exactly, the other not
+    assert record["val_precision_rmse"] == pytest.approx(3**0.5 / 2)  # every cloth sample lies on one of its goals
+    one_hole = [np.stack([goal[0], goal[0]]), np.stack([goal[0], goal[0]]), samples[2]]
+    record = train.validate(_FixedSamples(one_hole), [first, second, other], num_samples=2, seed=0)
+    assert record["val_precision_rmse"] == pytest.approx(3**0.5 / 2)  # precise, though only one hole is covered
+    assert record["val_coverage_rmse"] == pytest.approx((3 * 3**0.5 / 2 + 3**0.5) / 2)
     assert train.scene_groups([(d["action_pc"], d["anchor_pc"]) for d in (first, other, second)]) == [[0, 2], [1]]
     assert "val_coverage_rmse" not in train.validate(_FixedSamples(samples[2:]), [other], num_samples=2, seed=0)
 

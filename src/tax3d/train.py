@@ -43,7 +43,7 @@ from tax3d.checkpoint import STATE_NAME, find_last, read_log, read_weights, save
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import data_task, grip_vertices, load_demo
 from tax3d.errors import UsageError
-from tax3d.metrics import coverage_rmse, grip_error, min_of_samples_rmse, rmse
+from tax3d.metrics import coverage_rmse, grip_error, min_of_samples_rmse, precision_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
 from tax3d.options import OutputFolder
 from tax3d.plan import Plan
@@ -139,8 +139,8 @@ def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps
              points: str = "whole") -> dict:
     """World-frame RMSE on whole action clouds: the mean over demos of the min over samples, and over all samples;
     val_grip_error: the mean over demos and samples of the distance at the grasped vertices (where the policy's
-    grippers go); where demos share an observation (one per mode), also the coverage RMSE over those groups
-    (appendix C)."""
+    grippers go); where demos share an observation (one per mode), also the coverage and precision RMSE over those
+    groups (appendix C)."""
     was_training = model.training
     model.eval()
     scenes = [(d["action_pc"], d["anchor_pc"]) for d in demos]
@@ -156,9 +156,9 @@ def validate(model: Tax3D, demos: list[dict], num_samples: int, seed: int, steps
         record["val_grip_error"] = float(np.mean([grip_error(p, g, v) for p, g, v in zip(predictions, goals, grip)]))
     groups = scene_groups(scenes)
     if any(len(g) > 1 for g in groups):
-        record["val_coverage_rmse"] = float(np.mean([
-            coverage_rmse(np.concatenate([predictions[i] for i in g]), np.stack([goals[i] for i in g]))
-            for g in groups]))
+        pooled = [(np.concatenate([predictions[i] for i in g]), np.stack([goals[i] for i in g])) for g in groups]
+        record["val_coverage_rmse"] = float(np.mean([coverage_rmse(p, g) for p, g in pooled]))
+        record["val_precision_rmse"] = float(np.mean([precision_rmse(p, g) for p, g in pooled]))
     return record
 
 
