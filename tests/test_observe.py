@@ -148,3 +148,40 @@ def test_generate_camera_out_bad_input_is_one_line(capsys, tmp_path):
                    "--camera-out", "expected a folder of its own")
     one_line_error(capsys, ["generate", "--num", "1", "--out", tmp_path / "m", "--camera-out", tmp_path / "c",
                             "--camera.distance", "-1"], "--camera.distance")
+
+
+def test_the_policy_drives_the_grippers_to_the_goals_of_the_observed_points_nearest_the_grasps():
+    from types import SimpleNamespace
+
+    from tax3d.policy import GoalPolicy
+
+    cloth = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 1]])
+    env = SimpleNamespace(anchor_points=lambda: np.zeros((3, 3)), mesh=SimpleNamespace(grip_vertices=lambda: (0, 3)))
+    seen = np.array([[0.5, 0, 0.5], [0.98, 0.01, 1.02], [0.3, 0, 0], [0.02, 0, -0.01], [1, 0, 0]])
+
+    class Shift:
+        def predict(self, action, anchor, num_samples=1, **_):
+            return np.repeat((action + [0.0, -2.0, 0.0])[None], num_samples, axis=0)
+
+    policy = GoalPolicy(Shift(), offset=(0, 0, 0.5), observe=lambda _: seen)(env, SimpleNamespace(cloth=cloth))
+    assert policy.grip == [3, 1] and policy.first_cloud is seen
+    np.testing.assert_allclose(policy.targets(cloth), seen[[3, 1]] + [0.0, -2.0, 0.5])
+
+
+def test_eval_scores_camera_demos_with_the_simulators_success_check(generated, tmp_path):
+    """The demos' own goals, executed from the camera's cloud: the grippers take the observed points nearest the
+    grasped vertices, and the simulator judges the cloth."""
+    from tax3d.evaluate import Args as EvalArgs
+    from tax3d.evaluate import evaluate
+    from tax3d.sim.generate import Args, generate
+
+    out, _ = generated
+    generate(Args(task="hangproccloth-simple", split="unseen", num=1, out=out, camera_out=tmp_path / "cam" / "unseen"),
+             progress=False)
+    camera = load_demo(tmp_path / "cam" / "unseen" / "demo_0.npz")
+    done = evaluate(EvalArgs(goal="demo", observe="camera", task="hangproccloth-simple", splits="unseen",
+                             data=tmp_path / "cam", workers=1, report=False, out=tmp_path / "eval"), progress=False)
+    (episode,) = done["results"]
+    assert episode["success"] and episode["executed_rmse"] == 0.0
+    np.testing.assert_array_equal(episode["action_pc"], camera["action_pc"])
+    assert sorted(episode["grip_vertices"]) == sorted(v for g in camera["anchors"].values() for v in g["vertices"])
