@@ -285,7 +285,7 @@ def run(args: Args) -> int:
     stats = generate(args)
     rate = stats["success_rate"]
     if stats["episodes"] == 0:
-        camera = f"; wrote {stats['camera_written']} camera demos to {args.camera_out}" if stats["camera_written"] else ""
+        camera = f"; wrote {stats['camera_written']} camera demos to {args.camera_out}" if stats.get("camera_written") else ""
         print(f"nothing to generate: the {stats['skipped']} demos asked for are already in {args.out}{camera}")
         return 0
     print(
