@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -21,6 +21,7 @@ from tax3d.atomic import write_text
 from tax3d.errors import UsageError
 from tax3d.options import Finite, NonNegative, OutputFolder, Positive
 from tax3d.parallel import check_backend, run_each
+from tax3d.sim.observe import CameraSpec
 
 # The official data's `val_ood` folder holds out-of-distribution poses; its `val` folder is evaluated as `val`.
 SPLIT_FOLDERS = {"train": ("train",), "val": ("val",), "unseen": ("unseen",), "ood": ("ood", "val_ood")}
@@ -76,6 +77,12 @@ class Args:
     """output folder: results.json, summary.json (kept JSON: the summary alone), report.html, images/"""
     report: bool = True
     """write the HTML report"""
+    observe: Literal["mesh", "camera"] = "mesh"
+    """what the policy sees of the deformable: its mesh vertices, or depth cameras' cloud at the start (the grippers
+    go to the predicted goals of the observed points nearest the grasped vertices); with --data, the demos' own
+    action_pc is the camera's cloud (`tax3d generate --camera-out`), without it the cameras of --camera.* look"""
+    camera: CameraSpec = field(default_factory=CameraSpec)
+    """with --observe camera and no demo folder for a split: the cameras (as `tax3d generate --camera.*`)"""
 
 
 @dataclass
@@ -100,6 +107,10 @@ class EvalJob:
     device: str = "cpu"
     goal: str = "model"  # model, demo or mean (Args.goal)
     mean_goal: object = None  # with goal "mean": the MeanGoalBaseline fitted on the training demos
+    observe: str = "mesh"  # Args.observe
+    camera: object = None  # observe "camera": the CameraSpec
+    observation: np.ndarray | None = None  # observe "camera" with a demo: its action_pc, the camera's cloud
+    cloth_index: int = 0  # which cloth of the split: seeds the camera noise as `tax3d generate` does
 
 
 _PREDICTORS: dict = {}
@@ -158,11 +169,13 @@ def run_eval_job(job: EvalJob) -> dict:
     else:
         policy = GoalPolicy(predictor, job.samples, job.steps, job.seed, job.replan_every, trajectory=job.denoising,
                             offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler,
-                            max_points=job.max_points)
+                            max_points=job.max_points, observe=_camera(job) if job.observe == "camera" else None)
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
-    grip = list(ep.grip_vertices)  # the policy executes the first sample
+    # the policy executes the first sample, at the rows it takes for the grasped vertices
+    grip = list(getattr(policy, "grip", ep.grip_vertices))
+    seen = getattr(policy, "first_cloud", None)
     executed_grip_error = None if errors is None or not grip else grip_error(pred[0], job.true_goal, grip)
     return {
         "split": job.split, "name": job.name, "success": bool(ep.success), "exploded": bool(ep.exploded),
@@ -170,10 +183,25 @@ def run_eval_job(job: EvalJob) -> dict:
         "min_rmse": None if errors is None else float(errors.min()),
         "executed_rmse": None if errors is None else float(errors[0]), "executed_grip_error": executed_grip_error,
         "predict_seconds": policy.predict_seconds, "sim_seconds": ep.seconds - policy.predict_seconds,
-        "checks": ep.checks, "action_pc": ep.action_pc, "anchor_pc": ep.anchor_pc, "pred_goal": pred,
+        "checks": ep.checks, "action_pc": ep.action_pc if seen is None else seen, "anchor_pc": ep.anchor_pc,
+        "pred_goal": pred,
         "true_goal": job.true_goal, "released_pc": ep.released_pc, "grip_vertices": grip,
         "denoising": policy.denoising, "cloth_key": cloth_key(job),
     }
+
+
+def _camera(job: EvalJob):
+    """What a camera-observing policy sees: the demo's cloud at the start (the one its goals belong to), else, and on
+    replanning, the cameras' view of the scene now."""
+    from tax3d.sim.observe import camera_seed, observe
+
+    rng = camera_seed(job.task, job.split, job.cloth_index)
+    first = [] if job.observation is None else [job.observation]
+
+    def seen(env):
+        return first.pop() if first else observe(env, job.camera, rng).points
+
+    return seen
 
 
 def cloth_key(job: EvalJob) -> str:
@@ -217,7 +245,7 @@ def plan_jobs(args: Args) -> list[EvalJob]:
                       sampler=args.sampler, max_points=args.max_points, replan_every=args.replan_every,
                       task=task.name, device=args.device,
                       offset=None if args.policy_offset is None else tuple(float(v) for v in args.policy_offset),
-                      goal=args.goal, mean_goal=mean_goal)
+                      goal=args.goal, mean_goal=mean_goal, observe=args.observe, camera=args.camera)
         if folder is not None:
             paths = _demos_from(folder, args.first_index, args.episodes)
             for path in paths:
@@ -226,13 +254,16 @@ def plan_jobs(args: Args) -> list[EvalJob]:
                 floor = bool(demo["anchor_pc"][:, 2].min() >= trans[2] - 0.05)
                 jobs.append(EvalJob(split.name, path.stem, demo["deform_params"], float(demo["rot"][2]),
                                     trans.tolist(), floor, true_goal=demo["action_pc"] + demo["flow"],
-                                    seed=args.seed + demo_index(path), **common))
+                                    seed=args.seed + demo_index(path),
+                                    cloth_index=demo_index(path) // task.demos_per_cloth,
+                                    observation=demo["action_pc"] if args.observe == "camera" else None, **common))
         else:
             num = task.sizes[split.name] if args.episodes is None else args.episodes
             for i in range(args.first_index, args.first_index + num):
                 params = episode_params(task, split, i // task.demos_per_cloth)
                 jobs.append(EvalJob(split.name, f"episode_{i}", params.cloth_params, params.rot_z,
-                                    params.trans.tolist(), True, seed=args.seed + i, **common))
+                                    params.trans.tolist(), True, seed=args.seed + i,
+                                    cloth_index=i // task.demos_per_cloth, **common))
     if not jobs:
         raise UsageError(f"--splits {args.splits!r}: no episodes to evaluate")
     jobs[0].denoising = True
@@ -361,6 +392,8 @@ def evaluate(args: Args, progress: bool = True) -> dict:
     check_backend(args.backend, args.workers, args.address)
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
+    if args.observe == "camera" and not args.camera.views:
+        raise UsageError("--camera.views: none given; expected one or more of front, front-left, front-right, back")
     if args.goal == "model":
         if args.checkpoint is None:
             raise UsageError("--checkpoint: missing; expected a checkpoint folder (or --goal demo or mean with --data)")

@@ -15,27 +15,43 @@ class GoalPolicy:
     the paper's stated limitation; reported separately). `offset` is added to the predicted positions (HangBag:
     `tax3d.sim.bag.POLICY_OFFSET`). With several samples it follows the first, the paper's policy. Called as
     make_policy(env, state) by run_episode.
+
+    `observe(env)`, when given, is the action cloud the policy sees instead of the mesh vertices (a camera's, from
+    tax3d.sim.observe): the grippers then go to the predicted goals of the observed points nearest the grasped
+    vertices, which the simulator knows.
     """
 
     def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
                  replan_every: int = 0, trajectory: bool = False, offset=(0.0, 0.0, 0.0),
-                 sampler: str | None = None, max_points: int | None = None):
+                 sampler: str | None = None, max_points: int | None = None, observe=None):
         self.predictor, self.num_samples, self.steps, self.seed = predictor, num_samples, steps, seed
-        self.sampler, self.max_points = sampler, max_points
+        self.sampler, self.max_points, self.observe = sampler, max_points, observe
         self.offset = np.asarray(offset, dtype=np.float64)
         self.replan_every, self.trajectory = replan_every, trajectory
         self.predict_seconds, self.predictions = 0.0, 0
         self.first_prediction: np.ndarray | None = None  # (S, N, 3) world-frame goal samples
+        self.first_cloud: np.ndarray | None = None  # (N, 3) the action cloud they were predicted from
         self.denoising: np.ndarray | None = None  # (K, N, 3) intermediate goals of sample 0, noise to final
 
     def __call__(self, env, state):
-        self.anchor = env.anchor_points()
+        self.env, self.anchor = env, env.anchor_points()
         self.grip = list(env.mesh.grip_vertices())
         self.step = 0
         self._predict(state.cloth)
         return self
 
+    def _seen(self, cloth: np.ndarray) -> np.ndarray:
+        """The action cloud the policy predicts from; with a camera, the grip rows follow the grasped vertices."""
+        if self.observe is None:
+            return cloth
+        from tax3d.sim.observe import nearest_rows
+
+        seen = np.asarray(self.observe(self.env), dtype=np.float64)
+        self.grip = nearest_rows(seen, cloth[list(self.env.mesh.grip_vertices())])
+        return seen
+
     def _predict(self, cloth: np.ndarray) -> None:
+        cloth = self._seen(cloth)
         start = time.perf_counter()
         seed = self.seed + self.predictions
         if self.trajectory and self.predictions == 0:
@@ -48,7 +64,7 @@ class GoalPolicy:
                                            sampler=self.sampler, seed=seed, max_points=self.max_points)
         self.predict_seconds += time.perf_counter() - start
         if self.predictions == 0:
-            self.first_prediction = goals
+            self.first_prediction, self.first_cloud = goals, cloth
         self.predictions += 1
         self.current = goals[0][self.grip] + self.offset
 

@@ -33,14 +33,46 @@ def depth_to_points(depth: np.ndarray, view=VIEW, projection=PROJECTION) -> np.n
     return (points[:, :3] / points[:, 3:]).reshape(h, w, 3)
 
 
-def render_segmented_points(client: int, body_ids, size: int = IMAGE_SIZE) -> np.ndarray:
-    """World points of the pixels whose segment is one of body_ids, ordered by image column, then row."""
+def opengl_camera(view=VIEW, projection=PROJECTION, width: int = IMAGE_SIZE, height: int = IMAGE_SIZE):
+    """The intrinsics K (3, 3) and the camera-to-world pose (4, 4), OpenCV axes, of an OpenGL camera: what
+    tax3d.camera.depth_to_cloud takes, so that it unprojects this camera's images as depth_to_points does.
+
+    depth_to_points takes pixel corners, with no half-pixel shift, so the principal point is (W/2, H/2) rather than
+    the pixel centres' (W/2 - 1/2, H/2 - 1/2). OpenGL's eye frame (x right, y up, z backward) becomes OpenCV's
+    (x right, y down, z forward) by diag(1, -1, -1).
+    """
+    p = np.asarray(projection, dtype=np.float64).reshape(4, 4, order="F")
+    if not np.allclose(p[3], [0, 0, -1, 0]):
+        raise ValueError(f"projection's last row is {p[3].tolist()}; expected a perspective projection [0, 0, -1, 0]")
+    k = np.array([[p[0, 0] * width / 2, 0.0, width / 2 * (1 - p[0, 2])],
+                  [0.0, p[1, 1] * height / 2, height / 2 * (1 + p[1, 2])],
+                  [0.0, 0.0, 1.0]])  # fmt: skip
+    world_to_eye = np.asarray(view, dtype=np.float64).reshape(4, 4, order="F")
+    pose = np.linalg.inv(world_to_eye) @ np.diag([1.0, -1.0, -1.0, 1.0])
+    return k, pose
+
+
+def opengl_depth(buffer: np.ndarray, projection=PROJECTION) -> np.ndarray:
+    """The z-depth (distance along the optical axis, scene units) of an OpenGL depth buffer with values in [0, 1].
+
+    From the projection: NDC z = 2 buffer - 1 = -P22 - P23 / z_eye, and the depth is -z_eye."""
+    p = np.asarray(projection, dtype=np.float64).reshape(4, 4, order="F")
+    return p[2, 3] / (2 * np.asarray(buffer, dtype=np.float64) - 1 + p[2, 2])
+
+
+def render_image(client: int, view=VIEW, projection=PROJECTION, size: int = IMAGE_SIZE):
+    """One tiny-renderer frame of the scene: its depth buffer (H, W) in [0, 1] and its segmentation (H, W), each
+    pixel the id of the body seen there (-1: nothing; soft bodies have their ids too)."""
     _, _, _, depth, seg = pybullet.getCameraImage(
-        size, size, viewMatrix=VIEW, projectionMatrix=PROJECTION, shadow=0,
+        size, size, viewMatrix=list(view), projectionMatrix=list(projection), shadow=0,
         renderer=pybullet.ER_TINY_RENDERER, physicsClientId=client,
     )  # fmt: skip
-    depth = np.asarray(depth, dtype=np.float64).reshape(size, size)
-    seg = np.asarray(seg).reshape(size, size)
+    return np.asarray(depth, dtype=np.float64).reshape(size, size), np.asarray(seg).reshape(size, size)
+
+
+def render_segmented_points(client: int, body_ids, size: int = IMAGE_SIZE) -> np.ndarray:
+    """World points of the pixels whose segment is one of body_ids, ordered by image column, then row."""
+    depth, seg = render_image(client, size=size)
     points = depth_to_points(depth)
     keep = np.isin(seg, list(body_ids))
     return points.transpose(1, 0, 2)[keep.T]

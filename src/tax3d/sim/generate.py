@@ -17,6 +17,7 @@ from tax3d.errors import UsageError
 from tax3d.parallel import check_backend, run_each
 from tax3d.sim.bag import parse_bag_params
 from tax3d.sim.cloth import validate_cloth_params
+from tax3d.sim.observe import CameraSpec
 from tax3d.sim.scenes import process_env
 from tax3d.sim.tasks import episode_params, get_split, get_task
 from tax3d.options import NonNegative, OutputFolder, Positive
@@ -58,6 +59,12 @@ class Args:
     """a floor plane at z = 0 (replay decides this per file from its anchor cloud)"""
     steps: Annotated[int, Positive] = 300
     """environment steps of manipulation per episode (the paper's episodes: 300)"""
+    camera_out: Annotated[Path | None, OutputFolder] = None
+    """also write each demo as depth cameras see the deformable at the start, under the same name in this folder:
+    the same file format, action_pc the observed points and flow to their goals (docs/own-data.md); demos already
+    in OUT get theirs without simulating again"""
+    camera: CameraSpec = field(default_factory=CameraSpec)
+    """the cameras of --camera-out"""
 
 
 @dataclass
@@ -75,6 +82,9 @@ class Job:
     render_every: int = 10
     steps: int = 300
     out: str = ""
+    camera_out: str = ""  # write the camera demos there too
+    camera: CameraSpec | None = None
+    camera_only: bool = False  # the mesh demos are already in `out`: write their camera demos alone
 
 
 @dataclass
@@ -87,6 +97,7 @@ class JobResult:
     broken: int = 0  # bag episodes that stretched, spread or tunnelled beyond the integrity bounds
     figures: list[dict] = field(default_factory=list)  # bag episodes: the integrity figures, before and after
     seconds: float = 0.0
+    camera_only: bool = False
 
 
 def run_job(job: Job) -> JobResult:
@@ -95,7 +106,12 @@ def run_job(job: Job) -> JobResult:
     from tax3d.sim.render import render_frame, save_frames
 
     env = process_env(job.floor, get_task(job.task).scene)
-    result = JobResult(job.names)
+    result = JobResult(job.names, camera_only=job.camera_only)
+    if job.camera_only:
+        for name in job.names:
+            _write_camera_demo(env, job, name, load_demo(Path(job.out) / name))
+        result.written = list(job.names)
+        return result
     attempts = 1 if job.replay is not None else job.max_attempts
     for attempt in range(attempts):
         if job.replay is not None:
@@ -126,12 +142,24 @@ def run_job(job: Job) -> JobResult:
             episodes.append((ep, ok))
         if all(ok for _, ok in episodes):
             for name, (ep, _) in zip(job.names, episodes):
-                save_demo(Path(job.out) / name, episode_to_demo(ep, job.task))
+                demo = episode_to_demo(ep, job.task)
+                save_demo(Path(job.out) / name, demo)
+                if job.camera_out:
+                    _write_camera_demo(env, job, name, demo)
                 if job.render != "none" and ep.frames:
                     save_frames(ep.frames, Path(job.out) / "renders" / Path(name).stem, job.render)
                 result.written.append(name)
             break
     return result
+
+
+def _write_camera_demo(env, job: Job, name: str, demo: dict) -> None:
+    """The demo as the cameras see it at the start (tax3d.sim.observe): the scene reset to the demo's start."""
+    from tax3d.sim.observe import camera_demo, camera_seed
+
+    env.reset(demo["deform_params"], float(demo["rot"][2]), demo["trans"])
+    rng = camera_seed(job.task, job.split, demo_index(name) // get_task(job.task).demos_per_cloth)
+    save_demo(Path(job.camera_out) / name, camera_demo(env, demo, job.camera, rng))
 
 
 def _check_out(out: Path) -> None:
@@ -194,14 +222,30 @@ def generate(args: Args, progress: bool = True) -> dict:
         jobs = _generate_jobs(args)
         for job in jobs:
             job.floor = args.floor
+    if args.camera_out is not None and not args.camera.views:
+        raise UsageError("--camera.views: none given; expected one or more of front, front-left, front-right, back")
     _check_out(Path(args.out))
+    if args.camera_out is not None:
+        _check_out(Path(args.camera_out))
+        if Path(args.camera_out).resolve() == Path(args.out).resolve():
+            raise UsageError(f"--camera-out {args.camera_out}: the folder of --out; expected a folder of its own "
+                             f"(the camera demos keep the mesh demos' names)")
     for job in jobs:
         job.out, job.max_attempts, job.trajectories = str(args.out), args.max_attempts, args.trajectories
         job.render, job.render_every, job.steps = args.render, max(1, args.render_every), args.steps
+        job.camera_out, job.camera = ("", None) if args.camera_out is None else (str(args.camera_out), args.camera)
     todo = [j for j in jobs if not all(is_valid_demo(Path(args.out) / n, SIM_KEYS + ("anchors",)) for n in j.names)]
     stats = {"planned": sum(len(j.names) for j in jobs), "skipped": sum(len(j.names) for j in jobs if j not in todo)}
+    if args.camera_out is not None:  # mesh demos already there whose camera demos are not: those alone
+        for job in jobs:
+            if job not in todo and not all(is_valid_demo(Path(args.camera_out) / n, SIM_KEYS) for n in job.names):
+                job.camera_only = True
+                todo.append(job)
     results = _run(todo, args, progress)
+    camera_only = [r for r in results if r.camera_only]
+    results = [r for r in results if not r.camera_only]
     stats.update(
+        camera_written=0 if args.camera_out is None else sum(len(r.written) for r in results + camera_only),
         written=sum(len(r.written) for r in results),
         failed=[n for r in results for n in r.names if n not in r.written],
         episodes=sum(r.episodes for r in results),
@@ -241,7 +285,8 @@ def run(args: Args) -> int:
     stats = generate(args)
     rate = stats["success_rate"]
     if stats["episodes"] == 0:
-        print(f"nothing to generate: the {stats['skipped']} demos asked for are already in {args.out}")
+        camera = f"; wrote {stats['camera_written']} camera demos to {args.camera_out}" if stats.get("camera_written") else ""
+        print(f"nothing to generate: the {stats['skipped']} demos asked for are already in {args.out}{camera}")
         return 0
     print(
         f"expert success {stats['successes']}/{stats['episodes']} episodes ({rate:.0%}), "
@@ -251,6 +296,7 @@ def run(args: Args) -> int:
         f"wrote {stats['written']} demos to {args.out} ({stats['skipped']} already there"
         + (f", {len(stats['failed'])} failed: {' '.join(stats['failed'][:5])}" if stats["failed"] else "")
         + ")"
+        + (f"; {stats['camera_written']} camera demos to {args.camera_out}" if args.camera_out is not None else "")
     )
     return 0 if not stats["failed"] else 1
 
