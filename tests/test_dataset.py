@@ -103,8 +103,39 @@ def test_scene_rotation_is_drawn_per_sample_and_never_cached(demo_dir):
     kwargs = dict(num_action_points=NA, num_anchor_points=NB, subsets=2, rotate=False, train_size=12)
     turned = DemoDataset(folder, "cd", rotate_scene=True, **kwargs)
     assert turned.cached is None and DemoDataset(folder, "cd", **kwargs).cached is not None
+    assert DemoDataset(folder, "cd", occlusion=0.5, **kwargs).cached is None  # a cut drawn per sample too
     means = {tuple(turned[i]["action_mean"].tolist()) for i in range(0, 4 * len(turned.demos), len(turned.demos))}
     assert len(means) == 4  # demo 0, four times, four turns
+
+
+def test_an_occluded_cloud_keeps_its_size_and_each_points_own_goal(demo_dir):
+    _, demos = demo_dir
+    action, anchor, goal = clouds(demos[0])
+    plain = make_sample(action, anchor, goal, "cd", gen(2), NA, NB)
+    cut = [make_sample(action, anchor, goal, "cd", gen(seed), NA, NB, indices=(plain["action_idx"],
+                       farthest_point_sample(torch.from_numpy(anchor), NB, start=gen(2))), occlusion=0.99)
+           for seed in range(8)]
+    changed = [s for s in cut if not torch.equal(s["action_idx"], plain["action_idx"])]
+    assert changed  # some draws hide a part
+    for s in changed:
+        assert s["action"].shape == plain["action"].shape
+        rows = s["action_idx"].numpy()
+        assert len(set(rows.tolist())) < NA and set(rows.tolist()) <= set(plain["action_idx"].tolist())
+        close(s["goal"], goal[rows])  # every point keeps its own goal
+        close(to_world(s["target"], s, variant_spec("cd")), s["goal"])
+    assert torch.equal(make_sample(action, anchor, goal, "cd", gen(2), NA, NB, occlusion=0.0)["action_idx"],
+                       plain["action_idx"])
+
+
+def test_a_cut_that_would_hide_most_points_hides_none():
+    from tax3d.data.dataset import occluded
+
+    points = torch.tensor([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], dtype=torch.float64)
+    rows = torch.arange(4)
+    for seed in range(20):
+        out = occluded(points, gen(seed), rows)
+        hidden = 4 - len(set(out.tolist()))
+        assert hidden * 2 <= 4 and len(out) == 4
 
 
 def test_rotation_pivot_is_the_anchor_mean_except_world_frame(demo_dir):

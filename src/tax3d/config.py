@@ -85,6 +85,9 @@ class DataConfig:
     rotate_scene: bool = False
     """rotate the whole scene (action, anchor and goal) about z through the anchor mean by U(0, 2 pi) in training, as
     the authors' release does (random_flat_upright)"""
+    occlusion: Annotated[float, Fraction] = 0.0
+    """the chance that a training sample's action cloud loses a ball- or plane-shaped part, as a camera's view would
+    (the authors' release does so for real clouds); the hidden points are refilled by repeats of the seen ones"""
     grip_weight: Annotated[float, Positive] = 1.0
     """the loss weight of the grasped vertices (where the policy's grippers go) against 1 for every other point"""
     task: str = ""

@@ -357,7 +357,7 @@ def run(args: Args) -> int:
     dtype = pick_precision(c.precision, device)
 
     dataset = DemoDataset(config.data.train, config.model.variant, train=True, rotate=config.data.rotate,
-                          rotate_scene=config.data.rotate_scene,
+                          rotate_scene=config.data.rotate_scene, occlusion=config.data.occlusion,
                           num_action_points=config.data.num_action_points,
                           num_anchor_points=config.data.num_anchor_points, train_size=config.data.train_size,
                           seed=c.seed, subsets=config.data.subsets,

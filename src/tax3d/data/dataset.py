@@ -47,6 +47,30 @@ def _sample_indices(points: torch.Tensor, k: int | None, generator: torch.Genera
     return farthest_point_sample(points, k, start=generator)
 
 
+def occluded(points: torch.Tensor, generator: torch.Generator | None, rows: torch.Tensor) -> torch.Tensor:
+    """`rows` of `points` (K, 3) with a part hidden, the hidden rows replaced by repeats of seen ones (the sample
+    keeps its size): with even odds, a ball about a random point (radius U(0.1, 0.3) of the cloud's diameter) or the
+    side of a random plane through one (the authors' release cuts both kinds out of real clouds). A cut that would
+    hide more than half of the points hides none."""
+    def uniform() -> float:
+        return float(torch.rand((), generator=generator, dtype=torch.float64))
+
+    centre = points[int(torch.randint(len(points), (), generator=generator))]
+    if uniform() < 0.5:
+        diameter = float(torch.cdist(points, points).max())
+        hidden = (points - centre).norm(dim=-1) < (0.1 + 0.2 * uniform()) * diameter
+    else:
+        normal = torch.randn(3, generator=generator, dtype=torch.float64)
+        hidden = (points - centre) @ (normal / normal.norm()).to(points.dtype) > 0
+    seen = torch.nonzero(~hidden).flatten()
+    if len(seen) * 2 < len(points):
+        return rows
+    refill = seen[torch.randint(len(seen), (int(hidden.sum()),), generator=generator)]
+    rows = rows.clone()
+    rows[hidden] = rows[refill]
+    return rows
+
+
 def make_sample(
     action,
     anchor,
@@ -58,6 +82,7 @@ def make_sample(
     rotate: bool = False,
     indices: tuple[torch.Tensor, torch.Tensor] | None = None,
     rotate_scene: bool = False,
+    occlusion: float = 0.0,
 ) -> dict:
     """One training sample from world-frame action (N, 3), anchor (M, 3) and goal (N, 3) points.
 
@@ -65,8 +90,10 @@ def make_sample(
     anchor and the goal turn about z by U(0, 2 pi) and the action does not (docs/reference.md, Training): the
     result is a new scene, and `goal` is that scene's world-frame goal. With `rotate_scene`, first the whole scene
     (action, anchor and goal) turns about z by U(0, 2 pi), the authors' release's `random_flat_upright` transform: a
-    scene the policy could meet, where anchor rotation makes one whose goal no demonstration shows. `indices` (action rows, anchor rows) given
-    replace the sampling. Returns float32 tensors (plus the int64 action_idx); see `DemoDataset` for the keys.
+    scene the policy could meet, where anchor rotation makes one whose goal no demonstration shows. With chance
+    `occlusion`, the sampled action cloud loses a ball- or plane-shaped part (`occluded`), as a camera's view of it
+    might. `indices` (action rows, anchor rows) given replace the sampling. Returns float32 tensors (plus the int64
+    action_idx); see `DemoDataset` for the keys.
     """
     spec = variant_spec(spec)
     action, anchor, goal = (torch.as_tensor(x, dtype=torch.float64) for x in (action, anchor, goal))
@@ -74,6 +101,8 @@ def make_sample(
         indices = (_sample_indices(action, num_action_points, generator),
                    _sample_indices(anchor, num_anchor_points, generator))
     action_idx = indices[0]
+    if occlusion > 0 and float(torch.rand((), generator=generator)) < occlusion:
+        action_idx = occluded(action[action_idx], generator, action_idx)
     anchor = anchor[indices[1]]
     action, goal = action[action_idx], goal[action_idx]
 
@@ -159,6 +188,7 @@ class DemoDataset(Dataset):
         train: bool = True,
         rotate: bool | None = None,
         rotate_scene: bool = False,
+        occlusion: float = 0.0,
         num_action_points: int | None = 512,
         num_anchor_points: int | None = 512,
         train_size: int | None = None,
@@ -172,6 +202,7 @@ class DemoDataset(Dataset):
             raise UsageError(f"train_size is {train_size}; expected a positive number of samples per epoch")
         self.rotate = train if rotate is None else rotate
         self.rotate_scene = bool(rotate_scene)
+        self.occlusion = float(occlusion)
         self.num_action_points = num_action_points
         self.num_anchor_points = num_anchor_points
         self.train_size = train_size
@@ -195,7 +226,7 @@ class DemoDataset(Dataset):
             raise UsageError(f"subsets is {subsets}; expected 0 (sample points afresh) or a positive number")
         self.subsets = [self._subsets(d, subsets) for d in range(len(self.demos))] if subsets else None
         self.cached = None
-        if self.subsets is not None and not (self.rotate or self.rotate_scene):
+        if self.subsets is not None and not (self.rotate or self.rotate_scene or self.occlusion):
             self.cached = [[self._sample(d, idx, None) for idx in demo] for d, demo in enumerate(self.subsets)]
 
     def _subsets(self, demo_index: int, count: int) -> list[tuple[torch.Tensor, torch.Tensor]]:
@@ -213,6 +244,7 @@ class DemoDataset(Dataset):
         sample = make_sample(
             action, anchor, goal, self.spec, generator,
             self.num_action_points, self.num_anchor_points, self.rotate, indices, self.rotate_scene,
+            self.occlusion,
         )
         sample["demo_index"] = torch.tensor(demo_index, dtype=torch.int64)
         if self.grip_weight != 1.0:
