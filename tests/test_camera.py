@@ -107,3 +107,43 @@ def test_non_finite_depth_outside_the_mask_is_fine():
     mask[1, 2] = True
     assert depth_to_cloud(depth, mask, GOOD_K, np.eye(4)).shape == (1, 3)
 
+
+
+def _saved(folder, **arrays) -> dict:
+    paths = {}
+    for name, value in arrays.items():
+        paths[name] = str(folder / f"{name}.npy")
+        np.save(paths[name], value)
+    return paths
+
+
+def test_the_cloud_command_writes_the_functions_cloud(tmp_path, capsys):
+    from tax3d.cli import main
+
+    depth = np.full((3, 4), 2000.0)  # millimetres
+    mask = np.zeros((3, 4), dtype=bool)
+    mask[1, 3] = mask[0, 0] = True
+    paths = _saved(tmp_path, depth=depth, mask=mask, intrinsics=GOOD_K, pose=np.eye(4))
+    out = tmp_path / "cloud.npy"
+    assert main(["cloud", *(f"--{k}={v}" for k, v in paths.items()), "--out", str(out), "--depth-scale", "0.001"]) == 0
+    np.testing.assert_allclose(np.load(out), depth_to_cloud(depth / 1000, mask, GOOD_K, np.eye(4)))
+    assert "2 points" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("change, says", [
+    (dict(depth=np.ones((3, 4, 1))), "--depth {depth}: depth has shape (3, 4, 1)"),
+    (dict(mask=np.zeros((3, 4), bool)), "--mask {mask}: mask selects no pixel"),
+    (dict(depth=np.full((3, 4), np.nan)), "--depth {depth}: depth is NaN or infinite at 12 of the 12"),
+    (dict(pose="missing"), "--pose {pose}: unreadable"),
+])
+def test_the_cloud_command_refuses_bad_input_in_one_line(tmp_path, capsys, change, says):
+    from tax3d.cli import main
+
+    arrays = {"depth": np.ones((3, 4)), "mask": np.ones((3, 4), bool), "intrinsics": GOOD_K, "pose": np.eye(4)}
+    arrays.update({k: v for k, v in change.items() if not isinstance(v, str)})
+    paths = _saved(tmp_path, **arrays)
+    paths.update({k: str(tmp_path / v) for k, v in change.items() if isinstance(v, str)})
+    assert main(["cloud", *(f"--{k}={v}" for k, v in paths.items()), "--out", str(tmp_path / "c.npy")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert says.format(**paths) in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "c.npy").exists()

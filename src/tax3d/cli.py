@@ -13,6 +13,7 @@ COMMANDS = {
     "train": ("tax3d.train", "train a TAX3D variant on demonstration folders"),
     "train-dp3": ("tax3d.baselines.dp3.train", "train the DP3 baseline on demonstrations with trajectories"),
     "predict": ("tax3d.predict", "predict goal clouds for demonstration files with a checkpoint"),
+    "cloud": ("tax3d.camera", "turn a depth image, its mask, intrinsics and camera pose into a world-frame cloud"),
     "eval": ("tax3d.evaluate", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
     "benchmark": ("tax3d.benchmark", "generate, train and evaluate a task for a list of variants, resumable"),
     "demo": ("tax3d.demo", "the main job on the embedded default"),
