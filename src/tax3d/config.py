@@ -329,9 +329,9 @@ def read_json(path) -> dict:
 
 
 def save(config: Config, path) -> None:
-    from pathlib import Path
+    from tax3d.atomic import write_text
 
-    Path(path).write_text(json.dumps(to_dict(config), indent=2) + "\n")
+    write_text(path, json.dumps(to_dict(config), indent=2) + "\n")
 
 
 def load(path) -> Config:

@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn as nn
-from safetensors.torch import save_file
+from safetensors.torch import save as safetensors_bytes
 from scipy.spatial import cKDTree
 
 from tax3d import config as cfg
-from tax3d.atomic import atomic_write, write_text
+from tax3d.atomic import write_bytes, write_text
 from tax3d.checkpoint import (CONFIG_NAME, WEIGHTS_NAME, CheckpointError, check_directory, load_checked,
                               read_weights, with_weights_hash)
 from tax3d.errors import UsageError
@@ -276,7 +276,8 @@ class Tax3D(nn.Module):
         directory.mkdir(parents=True, exist_ok=True)
         state = state_dict if state_dict is not None else self.net.state_dict()
         state = {k: v.detach().to("cpu").contiguous() for k, v in state.items()}
-        atomic_write(directory / WEIGHTS_NAME, lambda path: save_file(state, str(path), metadata={"format": "pt"}))
+        # serialised here and written by Python, so that a full disk is an OSError naming the file
+        write_bytes(directory / WEIGHTS_NAME, safetensors_bytes(state, metadata={"format": "pt"}))
         config = with_weights_hash(cfg.to_dict(self.config), directory)
         write_text(directory / CONFIG_NAME, json.dumps(config, indent=2) + "\n")
 
