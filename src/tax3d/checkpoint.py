@@ -36,6 +36,26 @@ def check_directory(directory) -> Path:
     return directory
 
 
+WEIGHT_FIELDS = {
+    "model": ("variant", "hidden_size", "depth", "num_heads", "mlp_ratio"),
+    "diffusion": ("num_timesteps", "learn_sigma", "prediction", "sample_steps", "sampler"),
+    "data": ("num_action_points", "num_anchor_points"),
+}
+"""what a checkpoint's weights mean only with: the network's shape and variant (its frames), the diffusion schedule,
+what the network outputs and how it samples by default, the number of points it learned on (SD/SP's frame origin,
+the default subsample). A default in its place would predict, and wrongly; every other field may take its default."""
+
+
+def check_fields(config: dict, where: str) -> None:
+    """A CheckpointError naming the first of WEIGHT_FIELDS that a checkpoint's config.json lacks."""
+    for section, names in WEIGHT_FIELDS.items():
+        values = config.get(section) if isinstance(config, dict) else None
+        for name in names:
+            if not isinstance(values, dict) or name not in values:
+                raise CheckpointError(f"{where}: no {section}.{name}; expected the value its weights were trained "
+                                      f"with (a checkpoint's config.json records {section}.{', '.join(names)})")
+
+
 def sha256(path: Path) -> str:
     digest = hashlib.sha256()
     with open(path, "rb") as file:

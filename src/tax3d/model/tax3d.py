@@ -19,8 +19,8 @@ from scipy.spatial import cKDTree
 
 from tax3d import config as cfg
 from tax3d.atomic import write_bytes, write_text
-from tax3d.checkpoint import (CONFIG_NAME, WEIGHTS_NAME, CheckpointError, check_directory, load_checked,
-                              read_weights, with_weights_hash)
+from tax3d.checkpoint import (CONFIG_NAME, WEIGHTS_NAME, CheckpointError, check_directory, check_fields,
+                              load_checked, read_weights, with_weights_hash)
 from tax3d.errors import UsageError
 from tax3d.frames import frame_inputs, to_world
 from tax3d.geometry import farthest_point_sample
@@ -285,7 +285,9 @@ class Tax3D(nn.Module):
     def from_pretrained(cls, directory, variant: str | None = None, map_location="cpu") -> "Tax3D":
         """Load a checkpoint directory. `variant`, when given, must be the checkpoint's."""
         directory = check_directory(directory)
-        config = cfg.load(directory / CONFIG_NAME)
+        raw = cfg.read_json(directory / CONFIG_NAME)
+        config = cfg.from_dict(raw, str(directory / CONFIG_NAME))  # sections and types first, then the fields
+        check_fields(raw, str(directory / CONFIG_NAME))
         if variant is not None and variant_spec(variant).name != config.model.variant:
             raise CheckpointError(f"{directory}: the checkpoint is variant '{config.model.variant}', "
                                   f"not the requested '{variant_spec(variant).name}'")
