@@ -90,3 +90,34 @@ def test_deleting_the_output_folder_under_a_running_train_ends_it(tmp_path):
     assert len(lines) == 1 and lines[0].startswith("tax3d train: error: no such file or directory writing "), err
     assert str(out) in lines[0]
     assert not [pid for pid in workers if running(pid)], "a data worker outlived the run"
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 2 MB filesystem (tmpfs), where this process may mount one; skipped elsewhere."""
+    folder = tmp_path / "small"
+    folder.mkdir()
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2M", "tmpfs", str(folder)],
+                                           capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a small filesystem here")
+    yield folder
+    subprocess.run(["umount", "-l", str(folder)], check=True)
+
+
+def test_a_full_disk_is_one_sentence_and_keeps_the_last_checkpoint(tmp_path, small_disk):
+    import torch
+
+    from tax3d.model.tax3d import Tax3D
+
+    data = tmp_path / "demos"
+    write_demos(data, 2)
+    out = small_disk / "run"
+    process = start_train(out, data, "--train.keep_every", "5")  # a checkpoint kept at every validation fills it
+    code, err = finish(process, 300)
+    assert code == 1, err
+    lines = said(err)
+    assert len(lines) == 1 and lines[0].startswith(f"tax3d train: error: no space left on device writing {out}/")
+    state = torch.load(out / "last" / "training_state.pt", weights_only=True)
+    assert state["step"] >= 5 and Tax3D.from_pretrained(out / "last") is not None
+    leftovers = [p.name for p in out.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
+    assert not leftovers, leftovers

@@ -24,6 +24,13 @@ class WriteError(OSError):
     def __str__(self) -> str:
         return self.strerror
 
+    def __reduce__(self):  # from a worker process: rebuilt from its parts, not from OSError's (errno, strerror)
+        return _rebuilt, (self.errno, self.reason, str(self.path))
+
+
+def _rebuilt(errno: int | None, reason: str, path: str) -> WriteError:
+    return WriteError(OSError(errno, reason), path)
+
 
 @contextlib.contextmanager
 def writing(path):
