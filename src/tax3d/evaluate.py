@@ -18,6 +18,7 @@ import numpy as np
 
 from tax3d import kept, provenance
 from tax3d.atomic import write_text
+from tax3d.episodes import Episodes
 from tax3d.errors import UsageError
 from tax3d.options import Finite, NonNegative, OutputFolder, Positive
 from tax3d.parallel import check_backend, run_each
@@ -276,15 +277,24 @@ def _fixed_goal(args: Args, split_names: list[str]):
 
 
 def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_eval_job, backend: str = "local",
-             address: str | None = None) -> list[dict]:
+             address: str | None = None, kept: Episodes | None = None) -> list[dict]:
     """Episodes in worker processes (or Ray tasks); an episode that raises, or whose worker dies, is marked failed:
-    no hang, and the other episodes go on."""
+    no hang, and the other episodes go on. With `kept`, the episodes kept there are not run again, and each one run
+    is kept as it finishes."""
     from tqdm import tqdm
 
-    results: list[dict] = []
-    bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress, file=sys.stderr)
-    for i, result, error in run_each(fn, jobs, workers, backend, address):
-        results.append(result if error is None else _failed(jobs[i], f"{type(error).__name__}: {error}"))
+    results = [r for r in (kept.load(job) for job in jobs) if r is not None] if kept is not None else []
+    done = {(r["split"], r["name"]) for r in results}
+    todo = [job for job in jobs if (job.split, job.name) not in done]
+    if results and progress:
+        print(f"{len(results)} of {len(jobs)} episodes kept in {kept.folder} from an interrupted run: "
+              f"scoring the other {len(todo)}", file=sys.stderr)
+    bar = tqdm(total=len(jobs), initial=len(results), desc="episodes", unit="ep", disable=not progress,
+               file=sys.stderr)
+    for i, result, error in run_each(fn, todo, workers, backend, address):
+        if error is None and kept is not None:
+            kept.keep(todo[i], result)
+        results.append(result if error is None else _failed(todo[i], f"{type(error).__name__}: {error}"))
         bar.update()
     bar.close()
     order = {(j.split, j.name): i for i, j in enumerate(jobs)}
@@ -374,11 +384,13 @@ def evaluate(args: Args, progress: bool = True) -> dict:
     else:
         variant = f"{args.goal}-goal"
     jobs = plan_jobs(args)
-    results = run_jobs(jobs, args.workers, progress, backend=args.backend, address=args.address)
+    sha = None if args.checkpoint is None else _weights_sha256(args.checkpoint)
+    kept = Episodes(args.out, sha)
+    results = run_jobs(jobs, args.workers, progress, backend=args.backend, address=args.address, kept=kept)
     splits = list(dict.fromkeys(j.split for j in jobs))
     summary = {
         "checkpoint": None if args.checkpoint is None else str(args.checkpoint), "task": args.task,
-        "weights_sha256": None if args.checkpoint is None else _weights_sha256(args.checkpoint),
+        "weights_sha256": sha,
         "variant": variant, "goal": args.goal,
         "command": "tax3d eval " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["eval"] else "tax3d.evaluate",
         "machine": provenance.machine(),
@@ -387,6 +399,7 @@ def evaluate(args: Args, progress: bool = True) -> dict:
         "policy_offset": list(get_task(args.task).policy_offset if args.policy_offset is None else args.policy_offset),
     }
     _write_outputs(args, summary, results)
+    kept.remove()
     return {"summary": summary, "results": results}
 
 
