@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+import warnings
 
 from tax3d import options
 from tax3d.atomic import WriteError
@@ -44,6 +45,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"tax3d: error: unknown command {name!r}; expected one of {', '.join(COMMANDS)}", file=sys.stderr)
         return 2
     module = importlib.import_module(COMMANDS[name][0])
+    warnings.formatwarning = lambda message, category, *_: f"tax3d {name}: warning: {message}\n"
     try:
         args = tyro.cli(module.Args, args=rest, prog=f"tax3d {name}", description=COMMANDS[name][1])
         options.check(args)

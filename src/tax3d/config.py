@@ -218,7 +218,7 @@ def preset(name: str) -> Config:
 
 # --- serialisation ---------------------------------------------------------------------------------------------
 
-METADATA = ("weights_sha256",)
+METADATA = ("weights_sha256", "extent")
 """top-level keys of a checkpoint's config.json beside the sections"""
 _SECTIONS = {"model": ModelConfig, "diffusion": DiffusionConfig, "data": DataConfig, "train": TrainConfig}
 RUN_STATE = object()

@@ -35,6 +35,7 @@ from torch.utils.data import DataLoader, Dataset, Sampler
 from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
+from tax3d import extent
 from tax3d import kept
 from tax3d import provenance
 from tax3d import rerun
@@ -409,6 +410,7 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     c = config.train
     torch.manual_seed(c.seed)
     model = Tax3D(config).to(device)
+    model.extent = extent.of_scenes((action.numpy(), anchor.numpy()) for action, anchor, _ in dataset.demos)
     ema = copy.deepcopy(model.net).requires_grad_(False) if c.ema > 0 else None
     optimizer = torch.optim.AdamW(model.parameters(), lr=c.lr, weight_decay=c.weight_decay)
     noise_gen = torch.Generator(device=device).manual_seed(c.seed)  # diffusion timesteps and noise
