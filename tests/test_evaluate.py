@@ -118,6 +118,9 @@ def test_bad_inputs(capsys, checkpoint, tmp_path):
         unknown = tiny_checkpoint(tmp_path / f"unknown{task}", task=task)
         one_line_error(capsys, ["eval", "--checkpoint", unknown, "--task", "hangbag", "--out", tmp_path],
                        str(unknown), says, "'hangbag'", "--data.task hangbag")
+    one_line_error(capsys, ["eval", "--checkpoint", checkpoint, "--splits", "unseen,ood,unseen", "--out",
+                            tmp_path / "twice"], "--splits 'unseen,ood,unseen': unseen is named twice")
+    assert not (tmp_path / "twice").exists()
 
 
 def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):

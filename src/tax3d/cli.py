@@ -47,7 +47,9 @@ def main(argv: list[str] | None = None) -> int:
     module = importlib.import_module(COMMANDS[name][0])
     warnings.formatwarning = lambda message, category, *_: f"tax3d {name}: warning: {message}\n"
     try:
-        args = tyro.cli(module.Args, args=rest, prog=f"tax3d {name}", description=COMMANDS[name][1])
+        parsed = tyro.cli(options.described(module.Args), args=rest, prog=f"tax3d {name}",
+                          description=COMMANDS[name][1])
+        args = options.parsed_as(module.Args, parsed)
         options.check(args)
         return int(module.run(args) or 0)
     except UsageError as err:

@@ -385,7 +385,8 @@ def overrides_of(cls: type) -> type:
     docs = field_docs(cls)
     fields = []
     for f in dataclasses.fields(cls):
-        arg = tyro.conf.arg(help=docs.get(f.name, ""), help_behavior_hint="(default: the preset's)")
+        own = "(default:" in docs.get(f.name, "")  # a field whose docstring gives its default shows it once
+        arg = tyro.conf.arg(help=docs.get(f.name, ""), help_behavior_hint="" if own else "(default: the preset's)")
         fields.append((f.name, Annotated[Optional[hints[f.name]], arg], field(default=None)))
     return dataclasses.make_dataclass(f"{cls.__name__}Overrides", fields, frozen=True)
 

@@ -71,6 +71,7 @@ class Args:
     """index of the first episode of each split: with --data, demo_FIRST.npz and the files after it (the table's
     test episodes: 100); without a demo folder, the first fresh episode"""
     seed: int = 0
+    """seed of each episode's prediction, plus the episode's index: the same seed, the same goals"""
     policy_offset: Annotated[tuple[float, float, float] | None, Finite] = None
     """added to the predicted grip-vertex positions to make the gripper targets (default: the task's)"""
     out: Annotated[Path, OutputFolder] = Path("out/eval")
@@ -199,6 +200,11 @@ def plan_jobs(args: Args) -> list[EvalJob]:
     if args.episodes is not None and args.episodes < 1:
         raise UsageError(f"--episodes {args.episodes}: expected at least 1 episode per split")
     split_names = [s.strip() for s in args.splits.split(",") if s.strip()]
+    canonical = [get_split(name).name for name in split_names]
+    twice = next((name for i, name in enumerate(canonical) if name in canonical[:i]), None)
+    if twice is not None:
+        raise UsageError(f"--splits {args.splits!r}: {twice} is named twice; expected each split once (its episodes "
+                         f"would be scored twice)")
     if args.data is not None:
         if not args.data.is_dir():
             raise UsageError(f"--data {args.data}: no such folder; expected one demo folder per split inside it")
