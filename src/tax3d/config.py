@@ -8,11 +8,8 @@ to its output, and a checkpoint's `config.json` is the same JSON.
 
 from __future__ import annotations
 
-import ast
 import dataclasses
-import inspect
 import json
-import textwrap
 import types
 import typing
 from dataclasses import dataclass, field
@@ -21,7 +18,7 @@ from typing import Annotated, Literal, Optional
 import tyro
 
 from tax3d.errors import UsageError
-from tax3d.options import Fraction, NonNegative, Positive, problems
+from tax3d.options import Fraction, NonNegative, Positive, field_docs, problems
 from tax3d.variants import variant_spec
 
 
@@ -368,14 +365,6 @@ def validate(config: Config, where: str = "config") -> Config:
 
 
 # --- command-line overrides ------------------------------------------------------------------------------------
-
-
-def field_docs(cls: type) -> dict[str, str]:
-    """The docstring under each field of a dataclass (the string right after it), on one line."""
-    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
-    return {node.target.id: " ".join(after.value.value.split()) for node, after in zip(body, body[1:])
-            if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
-            and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)}
 
 
 def overrides_of(cls: type) -> type:

@@ -7,9 +7,12 @@ writable the same way (`OutputFile`, `OutputFolder`), so a typo costs a second, 
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import inspect
 import math
 import os
+import textwrap
 import typing
 from pathlib import Path
 
@@ -103,8 +106,6 @@ def described(cls: type) -> type:
     shown once, by the docstring where it says "default: ...", else by the parser. Nested sections keep their own."""
     import tyro
 
-    from tax3d.config import field_docs
-
     hints = typing.get_type_hints(cls, include_extras=True)
     docs = field_docs(cls)
     fields = []
@@ -123,3 +124,11 @@ def described(cls: type) -> type:
 def parsed_as(cls: type, parsed) -> object:
     """An instance of cls with the values of `parsed`, an instance of described(cls)."""
     return cls(**{f.name: getattr(parsed, f.name) for f in dataclasses.fields(cls)})
+
+
+def field_docs(cls: type) -> dict[str, str]:
+    """The docstring under each field of a dataclass (the string right after it), on one line."""
+    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
+    return {node.target.id: " ".join(after.value.value.split()) for node, after in zip(body, body[1:])
+            if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
+            and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)}
