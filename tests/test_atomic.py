@@ -33,3 +33,17 @@ def test_write_json_returns_the_text_and_writes_it_only_when_given_a_path(tmp_pa
     path = tmp_path / "out.json"
     assert write_json(path, {"a": 1}, indent=1) == path.read_text().rstrip("\n")
     assert path.read_text().endswith("}\n")
+
+
+def test_a_failed_write_names_its_file_in_one_sentence(tmp_path):
+    import errno
+    import pickle
+
+    from tax3d.atomic import WriteError, write_text
+
+    with pytest.raises(WriteError) as raised:
+        write_text(tmp_path / "gone" / "config.json", "{}")
+    assert str(raised.value) == f"no such file or directory writing {tmp_path / 'gone' / 'config.json'}"
+    full = WriteError(OSError(errno.ENOSPC, "No space left on device"), tmp_path / "x")
+    again = pickle.loads(pickle.dumps(full))  # as it comes back from a worker process
+    assert str(again) == f"no space left on device writing {tmp_path / 'x'}" and again.errno == errno.ENOSPC

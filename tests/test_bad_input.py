@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import torch
 
+from tax3d.checkpoint import WEIGHT_FIELDS
 from tax3d.cli import main
 from tax3d.model.tax3d import Tax3D
 
@@ -119,6 +120,28 @@ def test_checkpoint_without_its_diffusion_section(tmp_path, capsys, demos, check
     del config["diffusion"]
     (checkpoint / "config.json").write_text(json.dumps(config))
     one_line_error(capsys, ["predict", "--checkpoint", checkpoint, "--demos", demos], "no 'diffusion' section")
+
+
+@pytest.mark.parametrize("field", [f"{section}.{name}" for section, names in WEIGHT_FIELDS.items()
+                                   for name in names])
+def test_a_checkpoint_without_a_field_its_weights_need_is_refused(tmp_path, capsys, demos, checkpoint, field):
+    """Without model.variant a CP checkpoint would be taken for CD, without diffusion.prediction an x_0 network for
+    an epsilon one: each such field is required, named when missing."""
+    section, name = field.split(".")
+    config = json.loads((checkpoint / "config.json").read_text())
+    del config[section][name]
+    (checkpoint / "config.json").write_text(json.dumps(config))
+    one_line_error(capsys, ["predict", "--checkpoint", checkpoint, "--demos", demos], f"no {field}; expected")
+    with pytest.raises(ValueError, match=f"no {field};"):
+        Tax3D.from_pretrained(checkpoint)
+
+
+def test_weights_that_do_not_fit_the_config_are_named(tmp_path, capsys, demos, checkpoint):
+    config = json.loads((checkpoint / "config.json").read_text())
+    config["model"]["depth"] += 1
+    (checkpoint / "config.json").write_text(json.dumps(config))
+    one_line_error(capsys, ["predict", "--checkpoint", checkpoint, "--demos", demos],
+                   "weights do not match config.json")
 
 
 def test_damaged_weights_are_detected_by_their_hash(tmp_path, capsys, demos):

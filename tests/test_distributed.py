@@ -73,7 +73,7 @@ def assert_close_logs(a: list[dict], b: list[dict]) -> None:
 def test_two_processes_write_one_checkpoint_from_rank_0(runs):
     root, _, two, _ = runs
     out = root / "two"
-    assert sorted(p.name for p in out.iterdir()) == ["best", "config.json", "last", "log.jsonl", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["best", "config.json", "demos.json", "last", "log.jsonl", "summary.json"]
     assert [r["step"] for r in read_log(out)] == [1, 2]  # one writer: no line twice
     assert torch.load(out / "last" / train.STATE_NAME, weights_only=True)["step"] == 2
     model = Tax3D.from_pretrained(out / "last")

@@ -326,11 +326,12 @@ def test_bad_inputs(tmp_path, capsys):
     plain.mkdir()
     demo = {k: v for k, v in synthetic_demo(0).items() if not k.startswith("traj_")}
     save_demo(plain / "demo_0.npz", demo)
-    err = one_line_error(capsys, ["train-dp3", "--data.train", str(plain), "--out", str(tmp_path / "run")])
+    dp3 = ["train-dp3", "--preset", "cpu"]
+    err = one_line_error(capsys, [*dp3, "--data.train", str(plain), "--out", str(tmp_path / "run")])
     assert "demo_0.npz: no traj_gripper_pos" in err and "--trajectories" in err
-    err = one_line_error(capsys, ["train-dp3", "--data.train", str(tmp_path / "missing"), "--out", str(tmp_path / "run")])
+    err = one_line_error(capsys, [*dp3, "--data.train", str(tmp_path / "missing"), "--out", str(tmp_path / "run")])
     assert "no such demonstration folder" in err
-    err = one_line_error(capsys, ["train-dp3", "--data.train", str(plain), "--device", "tpu", "--out", str(tmp_path / "r")])
+    err = one_line_error(capsys, [*dp3, "--data.train", str(plain), "--device", "tpu", "--out", str(tmp_path / "r")])
     assert "--device 'tpu'" in err
 
 

@@ -118,6 +118,9 @@ def test_bad_inputs(capsys, checkpoint, tmp_path):
         unknown = tiny_checkpoint(tmp_path / f"unknown{task}", task=task)
         one_line_error(capsys, ["eval", "--checkpoint", unknown, "--task", "hangbag", "--out", tmp_path],
                        str(unknown), says, "'hangbag'", "--data.task hangbag")
+    one_line_error(capsys, ["eval", "--checkpoint", checkpoint, "--splits", "unseen,ood,unseen", "--out",
+                            tmp_path / "twice"], "--splits 'unseen,ood,unseen': unseen is named twice")
+    assert not (tmp_path / "twice").exists()
 
 
 def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
@@ -300,3 +303,47 @@ def test_evaluation_of_demos_without_the_simulator_keys_names_the_file_and_the_k
                             "--out", tmp_path / "e"],
                    str(tmp_path / "data" / "unseen" / "demo_0.npz"), "missing keys ['rot', 'trans', 'deform_params']")
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.slow
+def test_an_interrupted_evaluation_resumes_with_the_missing_episodes(generated, tmp_path, monkeypatch):
+    """Each finished episode is kept as it finishes; the same command again runs only the others, and scores what an
+    uninterrupted run scores."""
+    import shutil
+
+    from tax3d import episodes
+    from tax3d.sim import episode
+
+    folder, _ = generated
+    data = tmp_path / "data"
+    (data / "unseen").mkdir(parents=True)
+    for i in range(2):
+        shutil.copy(next(folder.glob("demo_*.npz")), data / "unseen" / f"demo_{i}.npz")
+    command = ["eval", "--goal", "demo", "--task", "hangproccloth-simple", "--data", str(data), "--splits", "unseen",
+               "--workers", "1", "--no-report"]
+    assert main([*command, "--out", str(tmp_path / "whole")]) == 0
+
+    keep = episodes.Episodes.keep
+
+    def keep_then_interrupt(self, job, result):
+        keep(self, job, result)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(episodes.Episodes, "keep", keep_then_interrupt)
+    out = tmp_path / "resumed"
+    assert main([*command, "--out", str(out)]) == 130
+    assert [p.name for p in (out / "episodes").iterdir()] == ["unseen-demo_0.pkl"]
+    monkeypatch.setattr(episodes.Episodes, "keep", keep)
+    run = []
+    run_episode = episode.run_episode
+    monkeypatch.setattr(episode, "run_episode", lambda *a, **k: run.append(1) or run_episode(*a, **k))
+    assert main([*command, "--out", str(out)]) == 0
+    assert len(run) == 1 and not (out / "episodes").exists()
+
+    def scores(path):
+        results = json.loads((path / "results.json").read_text())
+        timed = ("predict_seconds", "sim_seconds")
+        return ([{k: v for k, v in e.items() if k not in timed} for e in results["episodes"]],
+                {k: v for k, v in results["summary"]["splits"]["unseen"].items() if k not in timed})
+
+    assert scores(out) == scores(tmp_path / "whole")

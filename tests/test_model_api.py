@@ -373,3 +373,52 @@ def test_predict_scenes_reports_progress_once_per_denoising_step(monkeypatch):
     scenes = [scene(i)[:2] for i in range(3)]
     model.predict_scenes(scenes, num_samples=2, steps=5, batch_scenes=2, progress=True)
     assert [(b.total, b.n, b.closed, b.disable) for b in bars] == [(10, 10, True, False)]  # 2 batches x 5 steps
+
+
+def test_clouds_far_outside_the_training_extent_are_named(tmp_path, demos, capsys):
+    """A checkpoint records the extent of its training clouds; predicting for clouds 1000 times larger or smaller
+    warns, in which units the model expects them; a checkpoint without the record does not."""
+    import warnings
+
+    from tax3d.cli import main
+    from tax3d.data.format import load_demo
+    from tax3d.extent import FACTOR, ExtentWarning
+
+    from tests.conftest import TINY
+
+    out = tmp_path / "run"
+    assert main(["train", *TINY, "--train.steps", "2", "--train.val_every", "2", "--data.train", str(demos),
+                 "--out", str(out)]) == 0
+    model = Tax3D.from_pretrained(out / "last")
+    assert set(model.extent) == {"action", "anchor"}
+    demo = load_demo(sorted(demos.iterdir())[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model.predict(demo["action_pc"], demo["anchor_pc"], steps=2, seed=0)  # the training clouds: no word
+        model.predict(demo["action_pc"] * (FACTOR * 0.9), demo["anchor_pc"], steps=2, seed=0)
+    for scale in (1000.0, 0.001):
+        with pytest.warns(ExtentWarning, match="times the .* of the clouds this checkpoint trained on; it expects "
+                                               "clouds in its training data's units"):
+            model.predict(demo["action_pc"] * scale, demo["anchor_pc"] * scale, steps=2, seed=0)
+    capsys.readouterr()
+    scaled = tmp_path / "scaled"
+    scaled.mkdir()
+    np.savez(scaled / "demo_0.npz", **{**{k: v for k, v in demo.items() if isinstance(v, np.ndarray)},
+                                       "action_pc": demo["action_pc"] * 1000, "anchor_pc": demo["anchor_pc"] * 1000,
+                                       "flow": demo["flow"] * 1000})
+    import os
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "tax3d.cli", "predict", "--checkpoint", str(out / "last"), "--demos",
+                           str(scaled), "--steps", "2"], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")})
+    assert done.returncode == 0, done.stderr
+    assert "tax3d predict: warning: the action cloud's extent (RMS distance from its mean) is" in done.stderr
+    # a checkpoint from before the record: no warning
+    config = json.loads((out / "last" / "config.json").read_text())
+    del config["extent"]
+    (out / "last" / "config.json").write_text(json.dumps(config))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Tax3D.from_pretrained(out / "last").predict(demo["action_pc"] * 1000, demo["anchor_pc"], steps=2, seed=0)

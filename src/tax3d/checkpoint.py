@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import shutil
 import tempfile
@@ -13,7 +14,7 @@ import torch
 import torch.nn as nn
 from safetensors.torch import load_file
 
-from tax3d.atomic import write_text
+from tax3d.atomic import WriteError, write_bytes, write_text, writing
 from tax3d.errors import UsageError
 
 CONFIG_NAME = "config.json"
@@ -33,6 +34,26 @@ def check_directory(directory) -> Path:
         if not (directory / name).is_file():
             raise CheckpointError(f"{directory}: incomplete checkpoint, {name} is missing")
     return directory
+
+
+WEIGHT_FIELDS = {
+    "model": ("variant", "hidden_size", "depth", "num_heads", "mlp_ratio"),
+    "diffusion": ("num_timesteps", "learn_sigma", "prediction", "sample_steps", "sampler"),
+    "data": ("num_action_points", "num_anchor_points"),
+}
+"""what a checkpoint's weights mean only with: the network's shape and variant (its frames), the diffusion schedule,
+what the network outputs and how it samples by default, the number of points it learned on (SD/SP's frame origin,
+the default subsample). A default in its place would predict, and wrongly; every other field may take its default."""
+
+
+def check_fields(config: dict, where: str) -> None:
+    """A CheckpointError naming the first of WEIGHT_FIELDS that a checkpoint's config.json lacks."""
+    for section, names in WEIGHT_FIELDS.items():
+        values = config.get(section) if isinstance(config, dict) else None
+        for name in names:
+            if not isinstance(values, dict) or name not in values:
+                raise CheckpointError(f"{where}: no {section}.{name}; expected the value its weights were trained "
+                                      f"with (a checkpoint's config.json records {section}.{', '.join(names)})")
 
 
 def sha256(path: Path) -> str:
@@ -86,20 +107,49 @@ def save_checkpoint(out: Path, name: str, model: nn.Module, weights: dict, state
     if broken is not None:
         raise UsageError(f"--out {out}: weight {broken} is not finite; expected finite weights, "
                          f"{out / name} is left as it was")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=out))
-    tmp.chmod(0o755)
-    model.save_pretrained(tmp, state_dict=weights)
-    if state is not None:
-        torch.save(state, tmp / STATE_NAME)
-        (tmp / STATE_NAME).chmod(0o644)
     final, old = out / name, out / f".{name}.old"
-    if old.exists():
-        shutil.rmtree(old)
-    if final.exists():
-        final.rename(old)
-    tmp.rename(final)
-    if old.exists():
-        shutil.rmtree(old)
+    with writing(final):
+        tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=out))
+    try:
+        tmp.chmod(0o755)
+        model.save_pretrained(tmp, state_dict=weights)
+        if state is not None:
+            buffer = io.BytesIO()  # serialised here and written by Python: a full disk is then an OSError
+            torch.save(state, buffer)
+            write_bytes(tmp / STATE_NAME, buffer.getvalue())
+    except BaseException as err:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(err, OSError):
+            raise WriteError(err, final / getattr(err, "path", final).name) from None
+        raise
+    with writing(final):
+        if old.exists():
+            shutil.rmtree(old)
+        if final.exists():
+            final.rename(old)
+        tmp.rename(final)
+        if old.exists():
+            shutil.rmtree(old)
+
+
+class RunLog:
+    """A run's log.jsonl: one JSON record a line, each flushed as it comes (a failed write names the file)."""
+
+    def __init__(self, path: Path, append: bool):
+        self.path = path
+        with writing(path):
+            self.file = open(path, "a" if append else "w")
+
+    def write(self, record: dict) -> None:
+        with writing(self.path):
+            self.file.write(json.dumps(record) + "\n")
+            self.file.flush()
+
+    def close(self) -> None:
+        try:
+            self.file.close()
+        except OSError:  # a flush that failed has been reported where it failed
+            pass
 
 
 def find_last(out: Path) -> Path | None:
@@ -111,13 +161,19 @@ def find_last(out: Path) -> Path | None:
 
 
 def read_log(path: Path) -> list[dict]:
-    """The records of a run's log.jsonl, one per logged step."""
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    """The records of a run's log.jsonl, one per logged step; a last line cut short (a full disk) is left out."""
+    return [json.loads(line) for line in log_lines(path)]
+
+
+def log_lines(path: Path) -> list[str]:
+    text = path.read_text()
+    lines = [line for line in text.splitlines() if line.strip()]
+    return lines[:-1] if lines and not text.endswith("\n") else lines
 
 
 def truncate_log(path: Path, step: int) -> None:
     """Drop log lines written after the checkpoint a run resumes from (they will be written again)."""
     if not path.is_file():
         return
-    lines = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= step]
+    lines = [line for line in log_lines(path) if json.loads(line)["step"] <= step]
     write_text(path, "".join(line + "\n" for line in lines))

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import importlib
+import os
 import sys
+import warnings
 
 from tax3d import options
+from tax3d.atomic import WriteError
 from tax3d.errors import UsageError
 
 COMMANDS = {
@@ -43,8 +46,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"tax3d: error: unknown command {name!r}; expected one of {', '.join(COMMANDS)}", file=sys.stderr)
         return 2
     module = importlib.import_module(COMMANDS[name][0])
+    warnings.formatwarning = lambda message, category, *_: f"tax3d {name}: warning: {message}\n"
     try:
-        args = tyro.cli(module.Args, args=rest, prog=f"tax3d {name}", description=COMMANDS[name][1])
+        parsed = tyro.cli(options.described(module.Args), args=rest, prog=f"tax3d {name}",
+                          description=COMMANDS[name][1])
+        args = options.parsed_as(module.Args, parsed)
         options.check(args)
         return int(module.run(args) or 0)
     except UsageError as err:
@@ -53,6 +59,30 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"tax3d {name}: interrupted", file=sys.stderr)
         return 130
+    except OSError as err:  # a full disk, a folder deleted underneath: the sentence of tax3d.atomic.WriteError
+        print(f"tax3d {name}: error: {os_failure(err)}", file=sys.stderr)
+        return 1
+    except Exception as err:
+        if os.environ.get(TRACEBACK):
+            raise
+        print(f"tax3d {name}: failed: {failure(err)} ({TRACEBACK}=1 shows where)", file=sys.stderr)
+        return 1
+
+
+TRACEBACK = "TAX3D_TRACEBACK"
+"""set (to anything) in the environment: an unexpected error ends with its traceback instead of one line"""
+
+
+def os_failure(err: OSError) -> str:
+    if isinstance(err, WriteError) or not err.strerror:
+        return str(err) or failure(err)
+    reason = err.strerror[:1].lower() + err.strerror[1:]
+    return f"{reason}: {err.filename}" if err.filename else reason
+
+
+def failure(err: BaseException) -> str:
+    text = str(err).strip().splitlines()
+    return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
 
 
 if __name__ == "__main__":

@@ -8,11 +8,8 @@ to its output, and a checkpoint's `config.json` is the same JSON.
 
 from __future__ import annotations
 
-import ast
 import dataclasses
-import inspect
 import json
-import textwrap
 import types
 import typing
 from dataclasses import dataclass, field
@@ -21,7 +18,7 @@ from typing import Annotated, Literal, Optional
 import tyro
 
 from tax3d.errors import UsageError
-from tax3d.options import Fraction, NonNegative, Positive, problems
+from tax3d.options import Fraction, NonNegative, Positive, field_docs, problems
 from tax3d.variants import variant_spec
 
 
@@ -221,7 +218,7 @@ def preset(name: str) -> Config:
 
 # --- serialisation ---------------------------------------------------------------------------------------------
 
-METADATA = ("weights_sha256",)
+METADATA = ("weights_sha256", "extent")
 """top-level keys of a checkpoint's config.json beside the sections"""
 _SECTIONS = {"model": ModelConfig, "diffusion": DiffusionConfig, "data": DataConfig, "train": TrainConfig}
 RUN_STATE = object()
@@ -332,9 +329,9 @@ def read_json(path) -> dict:
 
 
 def save(config: Config, path) -> None:
-    from pathlib import Path
+    from tax3d.atomic import write_text
 
-    Path(path).write_text(json.dumps(to_dict(config), indent=2) + "\n")
+    write_text(path, json.dumps(to_dict(config), indent=2) + "\n")
 
 
 def load(path) -> Config:
@@ -373,14 +370,6 @@ def validate(config: Config, where: str = "config") -> Config:
 # --- command-line overrides ------------------------------------------------------------------------------------
 
 
-def field_docs(cls: type) -> dict[str, str]:
-    """The docstring under each field of a dataclass (the string right after it), on one line."""
-    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
-    return {node.target.id: " ".join(after.value.value.split()) for node, after in zip(body, body[1:])
-            if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
-            and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)}
-
-
 def overrides_of(cls: type) -> type:
     """A dataclass with cls's fields, each optional and None by default: None keeps the preset's value. Each keeps
     its field's docstring as its --help."""
@@ -388,7 +377,8 @@ def overrides_of(cls: type) -> type:
     docs = field_docs(cls)
     fields = []
     for f in dataclasses.fields(cls):
-        arg = tyro.conf.arg(help=docs.get(f.name, ""), help_behavior_hint="(default: the preset's)")
+        own = "(default:" in docs.get(f.name, "")  # a field whose docstring gives its default shows it once
+        arg = tyro.conf.arg(help=docs.get(f.name, ""), help_behavior_hint="" if own else "(default: the preset's)")
         fields.append((f.name, Annotated[Optional[hints[f.name]], arg], field(default=None)))
     return dataclasses.make_dataclass(f"{cls.__name__}Overrides", fields, frozen=True)
 

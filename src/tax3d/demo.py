@@ -26,13 +26,18 @@ class Args:
     samples: Annotated[int, Positive] = 3
     """goal samples per episode shown in the report (the policy executes the first)"""
     workers: Annotated[int, Positive] = 2
+    """worker processes, each with its own simulator and a copy of the model"""
     out: Annotated[Path, OutputFolder] = Path("out/demo")
     """output folder: results.json, results.md, report.html, images/"""
 
 
 def run(args: Args) -> int:
     if not (args.checkpoint / "model.safetensors").is_file():
-        raise UsageError(f"--checkpoint {args.checkpoint}: no model.safetensors there; expected a checkpoint folder")
+        shipped = (" (the shipped checkpoints are in the repository's checkpoints/ folder, not in an installed "
+                   "package: run `make demo` or `pip install -e .` in a clone, or pass --checkpoint "
+                   "CLONE/checkpoints/tax3d-cd-simple)") if args.checkpoint == SHIPPED else ""
+        raise UsageError(f"--checkpoint {args.checkpoint}: no model.safetensors there; expected a checkpoint "
+                         f"folder{shipped}")
     # Indices from 1000 on: poses that none of the generated unseen / ood demonstration sets uses.
     return run_eval(EvalArgs(checkpoint=args.checkpoint, task="hangproccloth-simple", splits="unseen,ood",
                              episodes=args.episodes, samples=args.samples, workers=args.workers, first_index=1000,

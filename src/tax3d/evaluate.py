@@ -18,6 +18,7 @@ import numpy as np
 
 from tax3d import kept, provenance
 from tax3d.atomic import write_text
+from tax3d.episodes import Episodes
 from tax3d.errors import UsageError
 from tax3d.options import Finite, NonNegative, OutputFolder, Positive
 from tax3d.parallel import check_backend, run_each
@@ -71,6 +72,7 @@ class Args:
     """index of the first episode of each split: with --data, demo_FIRST.npz and the files after it (the table's
     test episodes: 100); without a demo folder, the first fresh episode"""
     seed: int = 0
+    """seed of each episode's prediction, plus the episode's index: the same seed, the same goals"""
     policy_offset: Annotated[tuple[float, float, float] | None, Finite] = None
     """added to the predicted grip-vertex positions to make the gripper targets (default: the task's)"""
     out: Annotated[Path, OutputFolder] = Path("out/eval")
@@ -226,6 +228,11 @@ def plan_jobs(args: Args) -> list[EvalJob]:
     if args.episodes is not None and args.episodes < 1:
         raise UsageError(f"--episodes {args.episodes}: expected at least 1 episode per split")
     split_names = [s.strip() for s in args.splits.split(",") if s.strip()]
+    canonical = [get_split(name).name for name in split_names]
+    twice = next((name for i, name in enumerate(canonical) if name in canonical[:i]), None)
+    if twice is not None:
+        raise UsageError(f"--splits {args.splits!r}: {twice} is named twice; expected each split once (its episodes "
+                         f"would be scored twice)")
     if args.data is not None:
         if not args.data.is_dir():
             raise UsageError(f"--data {args.data}: no such folder; expected one demo folder per split inside it")
@@ -307,15 +314,24 @@ def _fixed_goal(args: Args, split_names: list[str]):
 
 
 def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_eval_job, backend: str = "local",
-             address: str | None = None) -> list[dict]:
+             address: str | None = None, kept: Episodes | None = None) -> list[dict]:
     """Episodes in worker processes (or Ray tasks); an episode that raises, or whose worker dies, is marked failed:
-    no hang, and the other episodes go on."""
+    no hang, and the other episodes go on. With `kept`, the episodes kept there are not run again, and each one run
+    is kept as it finishes."""
     from tqdm import tqdm
 
-    results: list[dict] = []
-    bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress, file=sys.stderr)
-    for i, result, error in run_each(fn, jobs, workers, backend, address):
-        results.append(result if error is None else _failed(jobs[i], f"{type(error).__name__}: {error}"))
+    results = [r for r in (kept.load(job) for job in jobs) if r is not None] if kept is not None else []
+    done = {(r["split"], r["name"]) for r in results}
+    todo = [job for job in jobs if (job.split, job.name) not in done]
+    if results and progress:
+        print(f"{len(results)} of {len(jobs)} episodes kept in {kept.folder} from an interrupted run: "
+              f"scoring the other {len(todo)}", file=sys.stderr)
+    bar = tqdm(total=len(jobs), initial=len(results), desc="episodes", unit="ep", disable=not progress,
+               file=sys.stderr)
+    for i, result, error in run_each(fn, todo, workers, backend, address):
+        if error is None and kept is not None:
+            kept.keep(todo[i], result)
+        results.append(result if error is None else _failed(todo[i], f"{type(error).__name__}: {error}"))
         bar.update()
     bar.close()
     order = {(j.split, j.name): i for i, j in enumerate(jobs)}
@@ -407,11 +423,13 @@ def evaluate(args: Args, progress: bool = True) -> dict:
     else:
         variant = f"{args.goal}-goal"
     jobs = plan_jobs(args)
-    results = run_jobs(jobs, args.workers, progress, backend=args.backend, address=args.address)
+    sha = None if args.checkpoint is None else _weights_sha256(args.checkpoint)
+    kept = Episodes(args.out, sha)
+    results = run_jobs(jobs, args.workers, progress, backend=args.backend, address=args.address, kept=kept)
     splits = list(dict.fromkeys(j.split for j in jobs))
     summary = {
         "checkpoint": None if args.checkpoint is None else str(args.checkpoint), "task": args.task,
-        "weights_sha256": None if args.checkpoint is None else _weights_sha256(args.checkpoint),
+        "weights_sha256": sha,
         "variant": variant, "goal": args.goal,
         "command": "tax3d eval " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["eval"] else "tax3d.evaluate",
         "machine": provenance.machine(),
@@ -420,6 +438,7 @@ def evaluate(args: Args, progress: bool = True) -> dict:
         "policy_offset": list(get_task(args.task).policy_offset if args.policy_offset is None else args.policy_offset),
     }
     _write_outputs(args, summary, results)
+    kept.remove()
     return {"summary": summary, "results": results}
 
 

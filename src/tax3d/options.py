@@ -7,9 +7,12 @@ writable the same way (`OutputFile`, `OutputFolder`), so a typo costs a second, 
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import inspect
 import math
 import os
+import textwrap
 import typing
 from pathlib import Path
 
@@ -96,3 +99,36 @@ def check(obj, prefix: str = "") -> None:
     """Raise a UsageError naming the first option of obj whose value fails its checks."""
     for name, value, problem in problems(obj, prefix):
         raise UsageError(f"{option_name(name)} {show(value)}: {problem}")
+
+
+def described(cls: type) -> type:
+    """cls for the command line: each field's docstring as its --help (tax3d.config.field_docs), and the default
+    shown once, by the docstring where it says "default: ...", else by the parser. Nested sections keep their own."""
+    import tyro
+
+    hints = typing.get_type_hints(cls, include_extras=True)
+    docs = field_docs(cls)
+    fields = []
+    for f in dataclasses.fields(cls):
+        default = {"default": f.default} if f.default is not dataclasses.MISSING else (
+            {"default_factory": f.default_factory} if f.default_factory is not dataclasses.MISSING else {})
+        doc = docs.get(f.name, "")
+        hint = hints[f.name]
+        if doc:
+            arg = tyro.conf.arg(help=doc, **({"help_behavior_hint": ""} if "default:" in doc else {}))
+            hint = typing.Annotated[hint, arg]
+        fields.append((f.name, hint, dataclasses.field(**default)))
+    return dataclasses.make_dataclass(cls.__name__, fields)
+
+
+def parsed_as(cls: type, parsed) -> object:
+    """An instance of cls with the values of `parsed`, an instance of described(cls)."""
+    return cls(**{f.name: getattr(parsed, f.name) for f in dataclasses.fields(cls)})
+
+
+def field_docs(cls: type) -> dict[str, str]:
+    """The docstring under each field of a dataclass (the string right after it), on one line."""
+    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
+    return {node.target.id: " ".join(after.value.value.split()) for node, after in zip(body, body[1:])
+            if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
+            and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)}

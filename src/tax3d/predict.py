@@ -51,6 +51,7 @@ class Args:
     sampler: Optional[Literal["ddpm", "ddim"]] = None
     """default: the checkpoint's diffusion.sampler"""
     seed: int = 0
+    """seed of the diffusion noise (and of the farthest-point samples): the same seed, the same predictions"""
     out: Annotated[Optional[str], OutputFile] = None
     """npz file for the predictions (written atomically)"""
     variant: Optional[str] = None

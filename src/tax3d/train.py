@@ -15,9 +15,8 @@ share of every global batch, DistributedDataParallel averages the gradients, and
 from __future__ import annotations
 
 
+import contextlib
 import copy
-import dataclasses
-import json
 import math
 import signal
 import sys
@@ -36,10 +35,14 @@ from torch.utils.data import DataLoader, Dataset, Sampler
 from tax3d import config as cfg
 from tax3d import devices
 from tax3d import distributed
+from tax3d import extent
 from tax3d import kept
 from tax3d import provenance
+from tax3d import rerun
+from tax3d import runlock
 from tax3d.atomic import write_json
-from tax3d.checkpoint import STATE_NAME, find_last, read_log, read_weights, save_checkpoint, truncate_log
+from tax3d.checkpoint import (STATE_NAME, RunLog, find_last, read_log, read_weights, save_checkpoint,
+                              truncate_log)
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import data_task, grip_vertices, load_demo
 from tax3d.errors import UsageError
@@ -62,7 +65,11 @@ class Args:
     the table's rows); cpu-multimodal: cpu with the x_0 loss, for two-hole cloths; cpu-fast: cpu's quality in half
     its minutes (cloths and the bag); default: paper where CUDA is available, else cpu-fast"""
     resume: bool = False
-    """require a checkpoint in OUT/last to continue from (without it, one is used when present)"""
+    """require a checkpoint in OUT/last to continue from (without it, one is used when present); with it,
+    --train.steps and --train.val-every may move the run's end (the schedule then ends there)"""
+    fresh: bool = False
+    """start afresh in OUT: its checkpoints, log and summary are replaced (without it, a rerun into a run's folder
+    resumes that run, and only with that run's configuration and demonstrations)"""
     model: cfg.ModelOverrides = field(default_factory=cfg.ModelOverrides)
     diffusion: cfg.DiffusionOverrides = field(default_factory=cfg.DiffusionOverrides)
     data: cfg.DataOverrides = field(default_factory=cfg.DataOverrides)
@@ -175,19 +182,15 @@ def scene_groups(scenes: list[tuple[np.ndarray, np.ndarray]]) -> list[list[int]]
 
 
 def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.Config:
+    """The command's configuration; resuming, the run's (its planned steps kept), which the command's must equal
+    (tax3d.rerun), but for the options that change only how the run computes."""
     overrides = dict(model=args.model, diffusion=args.diffusion, data=args.data, train=args.train)
+    command = cfg.validate(cfg.apply_overrides(cfg.preset(default_preset(args.preset)), **overrides), "options")
     if last is None:
-        return cfg.validate(cfg.apply_overrides(cfg.preset(default_preset(args.preset)), **overrides), "options")
+        return command
     saved = cfg.load(last / "config.json")
-    config = cfg.validate(cfg.apply_overrides(copy.deepcopy(saved), **overrides), "options")
-    for section in ("model", "diffusion"):
-        if getattr(config, section) != getattr(saved, section):
-            changed = [f.name for f in dataclasses.fields(getattr(saved, section))
-                       if getattr(getattr(config, section), f.name) != getattr(getattr(saved, section), f.name)]
-            raise CheckpointError(f"--{section}.{changed[0]}: {last} was trained with "
-                                  f"{section}.{changed[0]} = {getattr(getattr(saved, section), changed[0])!r}; "
-                                  f"use another --out to train a different model")
-    return config
+    rerun.check_same_run(out, cfg.read_json(last / "config.json"), saved, command, extend=args.resume)
+    return cfg.validate(cfg.apply_overrides(copy.deepcopy(saved), **overrides), "options")
 
 
 def config_of_command(argv: list[str]) -> cfg.Config:
@@ -300,6 +303,13 @@ class Interruption:
               file=sys.stderr)
 
 
+def stop_workers(batches) -> None:
+    """End a DataLoader iterator's worker processes now, not in the interpreter's exit: a worker ignores SIGTERM
+    (ignore_interrupts), so the exit's terminate-and-join of child processes would wait for it forever."""
+    if hasattr(batches, "_shutdown_workers"):
+        batches._shutdown_workers()
+
+
 def ignore_interrupts(worker_id: int) -> None:
     """A data worker leaves Ctrl-C and SIGTERM to the training loop (which stops after its step, then ends the
     workers)."""
@@ -336,17 +346,30 @@ def load_state(last: Path, model: Tax3D, optimizer, ema, plan: Plan, noise_gen, 
 
 
 def run(args: Args) -> int:
+    """Train in OUT, holding its lock (tax3d.runlock) until every process of the run has ended."""
     world = distributed.from_env()
+    with contextlib.ExitStack() as ending:
+        if world.main:
+            ending.enter_context(runlock.hold(Path(args.out)))
+        return run_locked(args, world, ending)
+
+
+def run_locked(args: Args, world: distributed.World, ending: contextlib.ExitStack) -> int:
     out = Path(args.out)
-    last = find_last(out)
+    if args.resume and args.fresh:
+        raise UsageError("--fresh: not with --resume; expected one or the other")
+    last = None if args.fresh else find_last(out)
     if args.resume and last is None:
         raise UsageError(f"--resume: {out} holds no checkpoint to continue from (expected {out / 'last' / STATE_NAME})")
     config = resolve_config(args, out, last)
     c = config.train
     if not config.data.train:
         raise UsageError("--data.train: no training demonstration folder given")
-    files = demo_files(config.data.train) + (demo_files(config.data.val) if config.data.val else [])
-    config.data.task = data_task(files, config.data.task)  # what the files name, or "custom"; --data.task agrees
+    train_files, val_files = demo_files(config.data.train), demo_files(config.data.val) if config.data.val else []
+    config.data.task = data_task(train_files + val_files, config.data.task)  # what the files name, or "custom"
+    digests = rerun.demo_digests(train_files, val_files)
+    if last is not None:
+        rerun.check_same_demos(out, digests)
     distributed.check_batch_size(world, c.batch_size)
     if c.threads > 0:
         torch.set_num_threads(c.threads)
@@ -363,10 +386,15 @@ def run(args: Args) -> int:
                           seed=c.seed, subsets=config.data.subsets,
                           grip_weight=config.data.grip_weight)
     val_demos = load_val_demos(config)
+    if world.main:
+        if args.fresh:
+            rerun.clear_run(out)
+        if last is None or not (out / rerun.DIGEST_NAME).is_file():
+            rerun.keep_digests(out, digests)
     distributed.start(world, device)
     try:
         with Interruption() as interruption:
-            code = fit(config, out, last, dataset, val_demos, device, dtype, world, interruption)
+            code = fit(config, out, last, dataset, val_demos, device, dtype, world, interruption, ending)
     except BaseException:
         distributed.stop(world)
         raise
@@ -376,12 +404,13 @@ def run(args: Args) -> int:
 
 def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, val_demos: list[dict],
         device: torch.device, dtype: torch.dtype | None, world: distributed.World,
-        interruption: Interruption | None = None) -> int:
+        interruption: Interruption | None = None, ending: contextlib.ExitStack | None = None) -> int:
     from tqdm.auto import tqdm
 
     c = config.train
     torch.manual_seed(c.seed)
     model = Tax3D(config).to(device)
+    model.extent = extent.of_scenes((action.numpy(), anchor.numpy()) for action, anchor, _ in dataset.demos)
     ema = copy.deepcopy(model.net).requires_grad_(False) if c.ema > 0 else None
     optimizer = torch.optim.AdamW(model.parameters(), lr=c.lr, weight_decay=c.weight_decay)
     noise_gen = torch.Generator(device=device).manual_seed(c.seed)  # diffusion timesteps and noise
@@ -404,11 +433,15 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
     loader = DataLoader(EpochItems(dataset), batch_sampler=sampler, num_workers=c.num_workers,
                         persistent_workers=c.num_workers > 0, worker_init_fn=ignore_interrupts)
     batches = iter(loader)
-    log = open(out / "log.jsonl", "a" if last is not None else "w") if world.main else None
+    if ending is not None:  # an error anywhere ends the data workers before the run's lock is released
+        ending.callback(stop_workers, batches)
+    log = RunLog(out / "log.jsonl", append=last is not None) if world.main else None
     # a --train.minutes run shows no total (and no ETA) until its plan fixes the steps
     unplanned = c.minutes > 0 and plan.step_seconds == 0
     bar = tqdm(total=None if unplanned else c.steps, initial=step, desc="train", dynamic_ncols=True,
                disable=not world.main)
+    if ending is not None:
+        ending.callback(bar.close)
     model.train()
     started = time.time() - elapsed
     plan.resume(step)
@@ -511,15 +544,13 @@ def fit(config: cfg.Config, out: Path, last: Path | None, dataset: DemoDataset, 
                 save_last()
         if world.main:
             record["seconds"] = round(time.time() - started, 2)
-            log.write(json.dumps(record) + "\n")
-            log.flush()
+            log.write(record)
         if interrupted and world.main and not validating:
             save_last()
         if out_of_time or interrupted:
             break
     bar.close()
-    if hasattr(batches, "_shutdown_workers"):  # data workers end here, not in the interpreter's exit
-        batches._shutdown_workers()
+    stop_workers(batches)
     if log is not None:
         log.close()
     if interrupted and step < c.steps:

@@ -14,13 +14,14 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn as nn
-from safetensors.torch import save_file
+from safetensors.torch import save as safetensors_bytes
 from scipy.spatial import cKDTree
 
 from tax3d import config as cfg
-from tax3d.atomic import atomic_write, write_text
-from tax3d.checkpoint import (CONFIG_NAME, WEIGHTS_NAME, CheckpointError, check_directory, load_checked,
-                              read_weights, with_weights_hash)
+from tax3d import extent
+from tax3d.atomic import write_bytes, write_text
+from tax3d.checkpoint import (CONFIG_NAME, WEIGHTS_NAME, CheckpointError, check_directory, check_fields,
+                              load_checked, read_weights, with_weights_hash)
 from tax3d.errors import UsageError
 from tax3d.frames import frame_inputs, to_world
 from tax3d.geometry import farthest_point_sample
@@ -53,6 +54,7 @@ class Tax3D(nn.Module):
         self.learn_sigma = self.spec.diffusion and config.diffusion.learn_sigma
         self.diffusion = GaussianDiffusion(linear_betas(config.diffusion.num_timesteps), learn_sigma=self.learn_sigma,
                                            loss=config.diffusion.loss)
+        self.extent: dict | None = None  # of the training clouds (tax3d.extent); None: not recorded
 
     # --- the network in the variant's frames ---------------------------------------------------------------------
 
@@ -221,6 +223,7 @@ class Tax3D(nn.Module):
                 raise ValueError(f"max_points is {max_points}; expected 0 (no limit) or a positive integer")
         generator = self._generator(generator, seed)
         frames = self._frames(action_points, anchor_points, generator, max_points)
+        extent.warn(self.extent, [(action_points, anchor_points)])
         carry = frames.pop("carry", None)
         out = self.sample(frames["action"].expand(num_samples, -1, -1), frames["anchor"].expand(num_samples, -1, -1),
                           steps, sampler, generator, return_trajectory, progress)
@@ -245,6 +248,7 @@ class Tax3D(nn.Module):
         steps_per_batch = self.sampling(steps, sampler)[0] if self.spec.diffusion else 1
         generator = self._generator(None, seed)
         frames = [self._frames(action, anchor, generator, max_points) for action, anchor in scenes]
+        extent.warn(self.extent, scenes)
         carries = [f.pop("carry", None) for f in frames]
         results: list[np.ndarray | None] = [None] * len(frames)
         by_size: dict[tuple, list[int]] = {}
@@ -276,19 +280,24 @@ class Tax3D(nn.Module):
         directory.mkdir(parents=True, exist_ok=True)
         state = state_dict if state_dict is not None else self.net.state_dict()
         state = {k: v.detach().to("cpu").contiguous() for k, v in state.items()}
-        atomic_write(directory / WEIGHTS_NAME, lambda path: save_file(state, str(path), metadata={"format": "pt"}))
-        config = with_weights_hash(cfg.to_dict(self.config), directory)
+        # serialised here and written by Python, so that a full disk is an OSError naming the file
+        write_bytes(directory / WEIGHTS_NAME, safetensors_bytes(state, metadata={"format": "pt"}))
+        config = with_weights_hash({**cfg.to_dict(self.config), **({"extent": self.extent} if self.extent else {})},
+                                   directory)
         write_text(directory / CONFIG_NAME, json.dumps(config, indent=2) + "\n")
 
     @classmethod
     def from_pretrained(cls, directory, variant: str | None = None, map_location="cpu") -> "Tax3D":
         """Load a checkpoint directory. `variant`, when given, must be the checkpoint's."""
         directory = check_directory(directory)
-        config = cfg.load(directory / CONFIG_NAME)
+        raw = cfg.read_json(directory / CONFIG_NAME)
+        config = cfg.from_dict(raw, str(directory / CONFIG_NAME))  # sections and types first, then the fields
+        check_fields(raw, str(directory / CONFIG_NAME))
         if variant is not None and variant_spec(variant).name != config.model.variant:
             raise CheckpointError(f"{directory}: the checkpoint is variant '{config.model.variant}', "
                                   f"not the requested '{variant_spec(variant).name}'")
         model = cls(config)
+        model.extent = raw.get("extent") if isinstance(raw.get("extent"), dict) else None
         model.load_weights(read_weights(directory, map_location), str(directory / WEIGHTS_NAME))
         return model.to(map_location).eval()
 

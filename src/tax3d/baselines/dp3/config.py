@@ -23,16 +23,25 @@ class ModelConfig:
     variant: str = "dp3"
     """always dp3: the method's name in evaluation summaries"""
     horizon: int = 4
+    """gripper actions predicted per sample (a window of steps)"""
     n_obs_steps: int = 2
+    """observations (clouds and gripper states of the latest steps) each prediction is conditioned on"""
     n_action_steps: int = 4
     """actions executed per prediction, from the current step on"""
     point_dims: tuple[int, ...] = (64, 128, 256)
+    """widths of the point encoder's per-point MLP, before its max-pool"""
     encoder_dim: int = 64
+    """size of the pooled cloud feature"""
     state_dims: tuple[int, ...] = (64, 64)
+    """widths of the gripper-state MLP"""
     down_dims: tuple[int, ...] = (512, 1024, 2048)
+    """channels of the UNet's levels (each level halves the horizon)"""
     step_embed_dim: int = 128
+    """size of the diffusion step's embedding"""
     kernel_size: int = 5
+    """kernel of the UNet's 1-D convolutions (odd)"""
     groups: int = 8
+    """GroupNorm groups of the UNet's convolutions"""
 
 
 @dataclass
@@ -40,17 +49,23 @@ class DiffusionConfig:
     """DDIM with the squaredcos_cap_v2 schedule, sample prediction and clipping to [-1, 1]."""
 
     train_steps: int = 100
+    """diffusion steps of the training schedule"""
     inference_steps: int = 10
+    """DDIM steps at prediction"""
     clip_sample: bool = True
+    """clip each step's estimate of the clean actions to [-1, 1] (the normalised range)"""
 
 
 @dataclass
 class DataConfig:
+    """The demonstrations with trajectories and how observations are drawn from them."""
+
     train: tuple[str, ...] = ()
     """demo folders (or demo files) written with `tax3d generate --trajectories`"""
     num_action_points: int = 512
     """cloth points per observation (a prefix of the stored farthest-point order)"""
     num_anchor_points: int = 512
+    """anchor points per observation"""
     rotate: bool = True
     """rotate points, state and actions together about the world z axis by U(0, 2 pi) in training"""
     task: str = ""
@@ -59,12 +74,20 @@ class DataConfig:
 
 @dataclass
 class TrainConfig:
+    """AdamW with a warm-up and cosine decay, an EMA of the weights, and the saves of last/."""
+
     lr: float = 1e-4
+    """peak learning rate of AdamW, after the warm-up"""
     weight_decay: float = 1e-6
+    """AdamW's weight decay"""
     warmup_steps: int = 500
+    """steps of linear warm-up before the cosine decay"""
     batch_size: int = 128
+    """samples per step"""
     steps: int = 112_500
+    """optimizer steps of the run; the cosine decay ends at the last"""
     seed: int = 0
+    """seed of the weights, and with the step of each step's batch, rotations and noise"""
     save_every: int = 5000
     """write last/ every this many steps (and at the end)"""
     minutes: float = 0.0

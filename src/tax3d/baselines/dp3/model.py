@@ -14,9 +14,9 @@ from pathlib import Path
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
-from safetensors.torch import save_file
+from safetensors.torch import save as safetensors_bytes
 
-from tax3d.atomic import atomic_write, write_text
+from tax3d.atomic import write_bytes, write_text
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.network import ConditionalUnet1D, ObservationEncoder
 from tax3d.baselines.dp3.normalizer import MinMaxNormalizer
@@ -89,7 +89,7 @@ class DP3(nn.Module):
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         state = {k: v.detach().to("cpu").contiguous() for k, v in (state_dict or self.state_dict()).items()}
-        atomic_write(directory / WEIGHTS_NAME, lambda path: save_file(state, str(path), metadata={"format": "pt"}))
+        write_bytes(directory / WEIGHTS_NAME, safetensors_bytes(state, metadata={"format": "pt"}))
         write_text(directory / CONFIG_NAME, cfg.dumps(self.config))
 
     @classmethod

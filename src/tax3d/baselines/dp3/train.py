@@ -21,7 +21,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Literal, Optional
 
 import numpy as np
 import torch
@@ -49,8 +49,9 @@ class Args:
 
     out: Annotated[str, OutputFolder] = "runs/dp3"
     """output folder: config.json, log.jsonl and last/"""
-    preset: Literal["paper", "cpu"] = "paper"
-    """paper: docs/reference.md's DP3 (a GPU's work); cpu: a small model that trains in minutes on a CPU"""
+    preset: Optional[Literal["paper", "cpu"]] = None
+    """paper: docs/reference.md's DP3 (a GPU's work); cpu: a small model that trains in minutes on a CPU; default:
+    paper where CUDA is available, else cpu (as `tax3d train`)"""
     device: str = "auto"
     """auto (cuda when available), cpu or cuda"""
     model: cfg.ModelOverrides = field(default_factory=cfg.ModelOverrides)
@@ -66,9 +67,19 @@ def ema_decay(step: int) -> float:
 
 def resolve_config(args: Args, last: Path | None) -> cfg.DP3Config:
     """The preset with the given options applied; when resuming, the run's saved config (its preset wins)."""
-    config = cfg.preset(args.preset) if last is None else cfg.load(last / "config.json")
+    config = cfg.preset(default_preset(args.preset)) if last is None else cfg.load(last / "config.json")
     overrides = dict(model=args.model, diffusion=args.diffusion, data=args.data, train=args.train)
     return cfg.validate(apply_overrides(config, **overrides), "options")
+
+
+def default_preset(name: str | None) -> str:
+    """The preset asked for, or the one that fits this machine: paper with a GPU, cpu without (said on stderr)."""
+    if name is not None:
+        return name
+    name = "paper" if torch.cuda.is_available() else "cpu"
+    print(f"--preset not given: using {name} ({'a CUDA GPU is' if name == 'paper' else 'no CUDA GPU is'} "
+          f"available)", file=sys.stderr)
+    return name
 
 
 def step_batch(dataset: TrajectoryDataset, config: cfg.DP3Config, step: int, device: torch.device) -> tuple:

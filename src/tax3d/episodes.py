@@ -1,0 +1,80 @@
+"""An evaluation's finished episodes, kept as they finish in OUT/episodes/, so that a rerun of an interrupted
+`tax3d eval` scores only the missing ones. Each file holds one episode's result beside the digest of the job that
+made it (the episode's scene, goal source, weights, seed and policy settings): a file from any other job is not
+reused. The folder is removed once the evaluation's results.json is written."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import io
+import pickle
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from tax3d.atomic import write_bytes
+from tax3d.data.format import _PlainUnpickler
+
+FOLDER = "episodes"
+IGNORED = ("checkpoint", "device", "denoising")
+"""job fields that change where or how an episode is computed, not its result (the weights' digest stands for the
+checkpoint's path; the first episode's denoising steps are kept when its result carries them)"""
+
+
+def _feed(h, value) -> None:
+    if isinstance(value, dict):
+        for key in sorted(value, key=str):
+            h.update(repr(key).encode())
+            _feed(h, value[key])
+    elif isinstance(value, (list, tuple)):
+        h.update(b"[")
+        for item in value:
+            _feed(h, item)
+        h.update(b"]")
+    elif isinstance(value, np.ndarray):
+        h.update(f"{value.dtype}{value.shape}".encode())
+        h.update(np.ascontiguousarray(value).tobytes())
+    elif hasattr(value, "__dict__"):  # the mean-goal baseline
+        _feed(h, vars(value))
+    else:
+        h.update(repr(value).encode())
+
+
+def job_digest(job, weights_sha256: str | None) -> str:
+    h = hashlib.sha256((weights_sha256 or "").encode())
+    _feed(h, {f.name: getattr(job, f.name) for f in dataclasses.fields(job) if f.name not in IGNORED})
+    return h.hexdigest()
+
+
+class Episodes:
+    """The kept episodes of one evaluation in OUT/episodes."""
+
+    def __init__(self, out: Path, weights_sha256: str | None):
+        self.folder, self.weights = Path(out) / FOLDER, weights_sha256
+
+    def path(self, job) -> Path:
+        return self.folder / f"{job.split}-{job.name}.pkl"
+
+    def load(self, job) -> dict | None:
+        """The kept result of this very job, or None (none kept, another job's, or unreadable)."""
+        path = self.path(job)
+        if not path.is_file():
+            return None
+        try:
+            kept = _PlainUnpickler(io.BytesIO(path.read_bytes())).load()
+        except Exception:  # a damaged file is scored again
+            return None
+        if not isinstance(kept, dict) or kept.get("job") != job_digest(job, self.weights):
+            return None
+        result = kept.get("result")
+        return result if isinstance(result, dict) and (not job.denoising or result.get("denoising") is not None) \
+            else None
+
+    def keep(self, job, result: dict) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        write_bytes(self.path(job), pickle.dumps({"job": job_digest(job, self.weights), "result": result}))
+
+    def remove(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)

@@ -1,0 +1,119 @@
+"""Whether a rerun into a run's folder is the same run: the configuration its command makes against the one the
+folder records, and its demonstrations against their digest (OUT/demos.json). A rerun of the same run resumes; any
+other is refused, naming what differs, so that a folder's files never describe a run that did not happen."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import zipfile
+from pathlib import Path
+
+from tax3d import config as cfg
+from tax3d.atomic import write_text
+from tax3d.errors import UsageError
+
+DIGEST_NAME = "demos.json"
+HOW = {("train", "num_workers"), ("train", "threads"), ("train", "device"), ("train", "compile"),
+       ("train", "keep_every"), ("train", "time_limit")}
+"""fields that change how or how long a run computes, not the steps it takes: a resumed run may set them otherwise"""
+PLANNED = {("train", "steps"), ("train", "val_every")}
+"""fields a --train.minutes plan fixes at the run's start (config.json records them)"""
+DERIVED = {("data", "task")}
+"""fields made from the demonstrations (their digest is compared instead)"""
+
+
+def differences(recorded: dict, saved: cfg.Config, command: cfg.Config,
+                extend: bool = False) -> list[tuple[str, object, object]]:
+    """(section.field, the run's value, the command's) where the command's configuration differs from the run's.
+    Fields that the run's config.json lacks (written before they existed) are not compared, nor, with `extend`
+    (--resume), the steps and validation interval."""
+    skipped = HOW | DERIVED | (PLANNED if saved.train.minutes > 0 or extend else set())
+    found = []
+    for section in ("model", "diffusion", "data", "train"):
+        present = recorded.get(section, {})
+        for f in dataclasses.fields(getattr(saved, section)):
+            if (section, f.name) in skipped or f.name not in present:
+                continue
+            before, now = getattr(getattr(saved, section), f.name), getattr(getattr(command, section), f.name)
+            if before != now:
+                found.append((f"{section}.{f.name}", before, now))
+    return found
+
+
+def check_same_run(out: Path, recorded: dict, saved: cfg.Config, command: cfg.Config, extend: bool = False) -> None:
+    """A UsageError naming the first difference (and how many more) between the run in OUT and the command's."""
+    found = differences(recorded, saved, command, extend)
+    if not found:
+        return
+    name, before, now = found[0]
+    more = f" (and {', '.join(option(n) for n, _, _ in found[1:])})" if found[1:] else ""
+    raise UsageError(f"--out {out} holds another run: {option(name)} is {shown(before)} there, {shown(now)} in this "
+                     f"command{more}; expected the run's own options to resume it, or --fresh (its checkpoints and "
+                     f"log are replaced) or another --out for a new run")
+
+
+def option(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def shown(value) -> str:
+    return " ".join(map(str, value)) if isinstance(value, tuple) else repr(value)
+
+
+# --- the demonstrations ----------------------------------------------------------------------------------------
+
+
+def digest(files: list[Path]) -> str:
+    """sha256 of the demos' names and the arrays they hold (the npz members, not the zip's write times)."""
+    h = hashlib.sha256()
+    for path in files:
+        h.update(Path(path).name.encode() + b"\0")
+        try:
+            with zipfile.ZipFile(path) as archive:
+                for member in sorted(archive.namelist()):
+                    h.update(member.encode() + b"\0")
+                    h.update(archive.read(member))
+        except (OSError, zipfile.BadZipFile):
+            h.update(Path(path).read_bytes())
+    return h.hexdigest()
+
+
+def demo_digests(train: list[Path], val: list[Path]) -> dict:
+    return {"train": digest(train), "val": digest(val) if val else None}
+
+
+def check_same_demos(out: Path, digests: dict) -> None:
+    """A rerun's demos must be the run's (OUT/demos.json); a run from before the file was kept is not checked."""
+    path = out / DIGEST_NAME
+    if not path.is_file():
+        return
+    try:
+        recorded = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return
+    for split, value in digests.items():
+        if recorded.get(split, value) != value:
+            raise UsageError(f"--data.{split}: these demonstrations differ from those the run in {out} was trained "
+                             f"on ({path} records their digest); expected the same files to resume it, or --fresh "
+                             f"or another --out for a new run")
+
+
+def keep_digests(out: Path, digests: dict) -> None:
+    write_text(out / DIGEST_NAME, json.dumps(digests, indent=1) + "\n")
+
+
+RUN_FILES = ("last", ".last.old", "best", ".best.old", "steps", "log.jsonl", "summary.json", DIGEST_NAME)
+"""what a run writes into OUT beside config.json: --fresh removes them before it starts"""
+
+
+def clear_run(out: Path) -> None:
+    import shutil
+
+    for name in RUN_FILES:
+        path = out / name
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
