@@ -51,3 +51,22 @@ def test_eval_records_only_the_tables_test_indices(tmp_path, own_ledger):
     written = ledger.record_eval(Args(task="hangproccloth-simple", first_index=100), summary)
     assert ledger.read(own_ledger) == [written] and written["successes"] == {"unseen": 3}
     assert written["row"] is None and written["goal"] == "mean"
+
+
+def test_the_repositorys_ledger_holds_every_kept_row_and_only_grew_from_commit_to_commit():
+    import subprocess
+
+    from tax3d.results import ROOT
+
+    lines = ledger.read(ledger.REPOSITORY_LEDGER)
+    for path in sorted((ROOT / "docs" / "results" / "table").glob("*/*/*.json")):
+        row = json.loads(path.read_text())
+        scorings = ledger.of_row(lines, row["task"], row["num_train"], row["variant"])
+        assert scorings and ledger.is_kept_row(scorings[-1], row), path  # the row is its last scoring
+    rel = ledger.REPOSITORY_LEDGER.relative_to(ROOT)
+    shas = subprocess.run(["git", "log", "--reverse", "--format=%H", "--", str(rel)], cwd=ROOT, capture_output=True,
+                          text=True).stdout.split()
+    texts = [subprocess.run(["git", "show", f"{sha}:{rel}"], cwd=ROOT, capture_output=True, text=True).stdout
+             for sha in shas]
+    for before, after in zip(texts, [*texts[1:], ledger.REPOSITORY_LEDGER.read_text()]):
+        assert after.startswith(before)  # each commit only appended
