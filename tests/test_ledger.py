@@ -47,8 +47,8 @@ def test_eval_records_only_the_tables_test_indices(tmp_path, own_ledger):
                "goal": "mean", "splits": {"train": {"episodes": 40, "success_rate": 0.5},
                                           "unseen": {"episodes": 40, "success_rate": 0.075}}}
     for first in (0, 1000):  # the earlier pages' demo_0-39, the demo's fresh poses
-        assert ledger.record_eval(Args(task="hangproccloth-simple", first_index=first), summary) is None
-    written = ledger.record_eval(Args(task="hangproccloth-simple", first_index=100), summary)
+        assert ledger.record_eval(Args(task="hangproccloth-simple", first_index=first), summary, None) is None
+    written = ledger.record_eval(Args(task="hangproccloth-simple", first_index=100), summary, None)
     assert ledger.read(own_ledger) == [written] and written["successes"] == {"unseen": 3}
     assert written["row"] is None and written["goal"] == "mean"
 

@@ -11,7 +11,6 @@ first appended to the ledger (tax3d.ledger), which no deletion or rerun of a row
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import itertools
 import json
 import shlex
@@ -24,6 +23,7 @@ from tax3d import ledger
 from tax3d.atomic import write_json, write_text
 from tax3d.config import PresetName
 from tax3d.errors import UsageError
+from tax3d.ledger import demos_digest
 from tax3d.options import NonNegative, OutputFolder, Positive
 from tax3d.table import ROW_KIND, ROW_VERSION
 
@@ -190,35 +190,6 @@ def _train_dp3(args: Args, out: Path, files: tuple[str, ...]) -> Path:
 def _only(cls, **values) -> dict:
     names = {f.name for f in dataclasses.fields(cls)}
     return {k: v for k, v in values.items() if k in names and v is not None}
-
-
-def _feed(h, value) -> None:
-    import numpy as np
-
-    if isinstance(value, dict):
-        for key in sorted(value):
-            h.update(str(key).encode())
-            _feed(h, value[key])
-    elif isinstance(value, (list, tuple)):
-        for item in value:
-            _feed(h, item)
-    elif isinstance(value, np.ndarray):
-        h.update(f"{value.dtype}{value.shape}".encode())
-        h.update(np.ascontiguousarray(value).tobytes())
-    else:
-        h.update(repr(value).encode())
-
-
-def demos_digest(files) -> str:
-    """sha256 of the demos' names and contents (arrays, not file bytes, which hold write times): equal digests,
-    equal demos."""
-    from tax3d.data.format import load_demo
-
-    h = hashlib.sha256()
-    for path in files:
-        h.update(Path(path).name.encode())
-        _feed(h, load_demo(path))
-    return h.hexdigest()
 
 
 def _data_digests(args: Args, data: Path) -> dict:

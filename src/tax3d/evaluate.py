@@ -391,7 +391,8 @@ def evaluate(args: Args, progress: bool = True, record: bool = True) -> dict:
     if record:
         from tax3d.ledger import record_eval
 
-        record_eval(args, summary)
+        record_eval(args, summary, lambda split: _demos_from(_split_folder(args.data, split), args.first_index,
+                                                             args.episodes))
     _write_outputs(args, summary, results)
     return {"summary": summary, "results": results}
 

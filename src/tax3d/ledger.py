@@ -35,7 +35,7 @@ def default_path() -> Path | None:
 
 def _lines(path: Path, text: str) -> list[dict]:
     """The lines of `text`, after checking that each one's before_sha256 is the hash of the text before it."""
-    lines, offset = [], 0
+    lines = []
     h = hashlib.sha256()
     for number, raw in enumerate(text.splitlines(keepends=True), 1):
         try:
@@ -49,7 +49,6 @@ def _lines(path: Path, text: str) -> list[dict]:
                              f"only grows")
         lines.append(line)
         h.update(raw.encode())
-        offset += len(raw)
     if text and not text.endswith("\n"):
         raise UsageError(f"{path}: its last line ends without a newline; expected whole lines only")
     return lines
@@ -108,6 +107,35 @@ def is_kept_row(line: dict, row: dict) -> bool:
             and line.get("successes") == successes(row["splits"]))
 
 
+def _feed(h, value) -> None:
+    import numpy as np
+
+    if isinstance(value, dict):
+        for key in sorted(value):
+            h.update(str(key).encode())
+            _feed(h, value[key])
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            _feed(h, item)
+    elif isinstance(value, np.ndarray):
+        h.update(f"{value.dtype}{value.shape}".encode())
+        h.update(np.ascontiguousarray(value).tobytes())
+    else:
+        h.update(repr(value).encode())
+
+
+def demos_digest(files) -> str:
+    """sha256 of the demos' names and contents (arrays, not file bytes, which hold write times): equal digests,
+    equal demos."""
+    from tax3d.data.format import load_demo
+
+    h = hashlib.sha256()
+    for path in files:
+        h.update(Path(path).name.encode())
+        _feed(h, load_demo(path))
+    return h.hexdigest()
+
+
 def _tests(first: int, episodes: int, size: int) -> bool:
     """Whether episodes first .. first + episodes - 1 reach the table's test indices of a split of `size`."""
     from tax3d.sim.tasks import TEST_FIRST_INDEX
@@ -115,11 +143,9 @@ def _tests(first: int, episodes: int, size: int) -> bool:
     return first < TEST_FIRST_INDEX + size and first + episodes > TEST_FIRST_INDEX
 
 
-def record_eval(args, summary: dict) -> dict | None:
-    """`tax3d eval`: a line where it scored test episodes, with the digests of the demos it read (none where it drew
-    the episodes from their seeds)."""
-    from tax3d.benchmark import demos_digest
-    from tax3d.evaluate import _demos_from, _split_folder
+def record_eval(args, summary: dict, demos) -> dict | None:
+    """`tax3d eval`: a line where it scored test episodes, with the digests of the demos it read (`demos(split)`, the
+    files; none where it drew the episodes from their seeds)."""
     from tax3d.sim.tasks import get_task
 
     task = get_task(args.task)
@@ -129,8 +155,7 @@ def record_eval(args, summary: dict) -> dict | None:
         return None
     digests = None
     if args.data is not None:
-        digests = {k: demos_digest(_demos_from(_split_folder(args.data, k), args.first_index, args.episodes))
-                   for k in tested}
+        digests = {k: demos_digest(demos(k)) for k in tested}
     line = {**scoring(args.task, None, None, {**summary, "splits": tested}, digests, args.first_index,
                       summary["command"]), "checkpoint": summary["checkpoint"], "goal": summary["goal"]}
     return append(default_path(), line)
