@@ -143,3 +143,12 @@ def demos(tmp_path):
     for i in range(2):
         save_demo(folder / f"demo_{i}.npz", synthetic_demo(i))
     return folder
+
+
+@pytest.fixture(autouse=True)
+def own_ledger(tmp_path_factory, monkeypatch):
+    """Each test's scorings of test episodes go to a ledger of its own, never to the repository's (tax3d.ledger);
+    the variable reaches the commands a test runs in a process of their own too."""
+    path = tmp_path_factory.mktemp("ledger") / "ledger.jsonl"
+    monkeypatch.setenv("TAX3D_LEDGER", str(path))
+    return path

@@ -6,7 +6,7 @@ import shutil
 
 import pytest
 
-from tax3d import train
+from tax3d import ledger, train
 from tax3d.benchmark import Args, demos_digest, run
 from tax3d.checkpoint import sha256
 from tax3d.errors import UsageError
@@ -22,7 +22,7 @@ def data(generated, tmp_path):
     return root
 
 
-def test_rows_are_scored_once_and_a_stop_between_rows_resumes(data, tmp_path, capsys, monkeypatch):
+def test_rows_are_scored_once_and_a_stop_between_rows_resumes(data, tmp_path, capsys, monkeypatch, own_ledger):
     args = Args(task="hangproccloth-simple", variants="cd,cp", out=tmp_path / "bench", steps=2, episodes=1,
                 num_train=1, num_val=1, workers=1, data=data, keep=tmp_path / "keep")
     real_train = train.run
@@ -61,6 +61,24 @@ def test_rows_are_scored_once_and_a_stop_between_rows_resumes(data, tmp_path, ca
     args.variants, args.rescore = "cd", True
     assert run(args) == 0  # asked for: scored again, and the summary says how often
     assert json.loads((tmp_path / "keep" / "cd.json").read_text())["test"]["scorings"] == 2
+    lines = ledger.read(own_ledger)  # every scoring, in the order made, each before its row was written
+    assert [x["row"] for x in lines] == ["cd", "cp", "cd"] and lines[0]["weights_sha256"] == row["weights_sha256"]
+    assert lines[0]["data_sha256"] == row["data_sha256"] and lines[0]["episodes"] == {"unseen": 1, "ood": 1}
+    assert lines[0]["successes"] == ledger.successes(row["splits"]) and lines[0]["num_train"] == 1
+
+
+def test_a_row_deleted_and_kept_again_is_scored_twice_in_the_ledger(data, tmp_path, own_ledger):
+    args = Args(task="hangproccloth-simple", variants="cd", out=tmp_path / "bench", steps=2, episodes=1,
+                num_train=1, num_val=1, workers=1, data=data, keep=tmp_path / "keep")
+    assert run(args) == 0
+    first = json.loads((tmp_path / "keep" / "cd.json").read_text())
+    shutil.rmtree(tmp_path / "bench")
+    (tmp_path / "keep" / "cd.json").unlink()  # the row withdrawn: its scoring stays in the ledger
+    assert run(args) == 0
+    second = json.loads((tmp_path / "keep" / "cd.json").read_text())
+    assert second["test"]["scorings"] == 1  # the row's own count starts again; the ledger's does not
+    lines = ledger.of_row(ledger.read(own_ledger), "hangproccloth-simple", 1, "cd")
+    assert [ledger.is_kept_row(x, r) for x, r in zip(lines, (first, second))] == [True, True]
 
 
 def test_a_row_trained_again_after_a_fix_counts_its_trainings_and_scorings(data, tmp_path, capsys, monkeypatch):
@@ -167,7 +185,7 @@ def test_data_only_makes_the_rows_demonstrations_and_nothing_else(tmp_path, monk
     calls = []
     monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: calls.append(a) or {"failed": []})
     monkeypatch.setattr(train, "run", lambda a: pytest.fail("--data-only trains nothing"))
-    monkeypatch.setattr(evaluate, "evaluate", lambda a, progress=True: pytest.fail("--data-only scores nothing"))
+    monkeypatch.setattr(evaluate, "evaluate", lambda a, progress=True, record=True: pytest.fail("--data-only scores nothing"))
     args = Args(task="hangbag", variants="dp3", out=tmp_path / "b", num_train=16, workers=2, data_only=True)
     assert run(args) == 0
     assert [(c.out.name, c.num, c.workers) for c in calls] == [
@@ -187,7 +205,7 @@ def test_the_floor_and_ceiling_rows_score_fixed_goals_without_training(tmp_path,
 
     asked = []
 
-    def fake_evaluate(a, progress=True):
+    def fake_evaluate(a, progress=True, record=True):
         asked.append(a)
         a.out.mkdir(parents=True)  # as evaluate does
         split = {"episodes": 1, "success_rate": 1.0, "success_ci95": [0.2, 1.0], "rmse": 0.5, "coverage_rmse": None,
@@ -232,7 +250,7 @@ def test_a_kept_row_is_not_trained_or_scored_again_when_out_is_gone(tmp_path, mo
     from tax3d import evaluate
     from tax3d.errors import UsageError
 
-    monkeypatch.setattr(evaluate, "evaluate", lambda a, progress=True: pytest.fail("a kept row is scored once"))
+    monkeypatch.setattr(evaluate, "evaluate", lambda a, progress=True, record=True: pytest.fail("a kept row is scored once"))
     monkeypatch.setattr(train, "run", lambda a: pytest.fail("a kept row is trained once"))
     monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: {"failed": []})
     keep = tmp_path / "keep"
@@ -253,7 +271,7 @@ def test_a_kept_row_is_not_trained_or_scored_again_when_out_is_gone(tmp_path, mo
     args.rescore = False
 
     args.num_train = 64  # the kept row belongs to another size: refused before any demonstration is made
-    monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: pytest.fail("refused first"))
+    monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True, record=True: pytest.fail("refused first"))
     with pytest.raises(UsageError, match=r"^--keep .*cd.json holds the row of hangbag with --num-train 16; expected"):
         run(args)
 

@@ -24,18 +24,27 @@ def row(variant: str, success: float, episodes: int = 40) -> dict:
             "date": "2026-12-05"}
 
 
+def scored(kept: dict, num_train: int = 64, **changes) -> dict:
+    """The ledger's line of the scoring a kept row holds."""
+    from tax3d import ledger
+
+    return {**ledger.scoring(kept["task"], num_train, kept["variant"], kept, kept.get("data_sha256"), 100, "c"),
+            **changes}
+
+
 def test_rows_beside_the_papers_with_intervals_and_gaps(tmp_path):
     folder = tmp_path / "hangproccloth-unimodal" / "64"
     folder.mkdir(parents=True)
     (folder / "cd.json").write_text(json.dumps(row("cd", 0.875)))
     paper = tomllib.loads((ROOT / "docs" / "results" / "paper.toml").read_text())["hangproccloth-unimodal"]
     rows = table.load_rows(tmp_path / "hangproccloth-unimodal")
-    text = "\n".join(table.markdown("hangproccloth-unimodal", paper, rows))
-    assert "| TAX3D-CD | **0.88** (0.74-0.95) | 0.90 |" in text  # ours with its Wilson interval, then the paper's
+    lines = [scored(row("cd", 0.875))]
+    text = "\n".join(table.markdown("hangproccloth-unimodal", paper, rows, lines))
+    assert "| TAX3D-CD | **0.875** (0.74-0.95) | 0.90 |" in text  # ours exact, its Wilson interval, the paper's
     assert "| TAX3D-CP | not run yet |" in text and "| DP3 | not run yet |" in text
     assert "64 training demonstrations** (the paper's count)" in text
-    (line,) = table.commands(rows)
-    assert "best val RMSE 0.400 at step 20 of 20" in line and "scored 1 time(s)" in line
+    (line,) = table.commands(rows, lines)
+    assert "best val RMSE 0.400 at step 20 of 20" in line and "scored once (the ledger)" in line
 
 
 def test_a_file_of_another_kind_is_refused(tmp_path):
@@ -65,7 +74,7 @@ def test_the_papers_conclusions_tested_on_our_rows(tmp_path):
     assert verdict[next(k for k in verdict if k.startswith("TAX3D hangs"))] == "**holds**"
     # CP-W 0.85 against CP 0.95: lower, but the intervals overlap
     assert verdict[next(k for k in verdict if k.startswith("Without object-specific"))] == "**within noise**"
-    assert "CD-W ood 0.05 vs TAX3D-CD ood 0.88" in text
+    assert "CD-W ood 0.05 vs TAX3D-CD ood 0.875" in text
     assert verdict[next(k for k in verdict if k.startswith("DP3 fails on out"))] == "**not run yet**"
     # at 64 demos only the claims with every row run are listed: CD's 0.50 is far below the paper's
     at64 = text.split("512 training demonstrations:")[0]
@@ -122,10 +131,10 @@ def test_the_fixed_goals_bound_the_table_and_smaller_sizes_list_only_their_rows(
     rows = table.load_rows(tmp_path / "hangproccloth-unimodal")
     text = "\n".join(table.markdown("hangproccloth-unimodal", paper, rows))
     small, large = text.split("**512 training demonstrations**")
-    assert "| TAX3D-CD | **0.88**" in small and "TAX3D-CP" not in small.split("**Conclusions")[0]
-    assert "| mean goal of train (the floor) | **0.38** (0.24-0.53) | - |" in large
+    assert "| TAX3D-CD | **0.875**" in small and "TAX3D-CP" not in small.split("**Conclusions")[0]
+    assert "| mean goal of train (the floor) | **0.375** (0.24-0.53) | - |" in large
     assert "| each demo's own goal (the ceiling) | **0.90**" in large and "| TAX3D-CP | not run yet |" in large
-    assert "every row `--preset cpu`" in large  # the preset of the trained rows, not the fixed goals' none
+    assert "rows share: `--preset cpu`" in large  # the preset of the trained rows, not the fixed goals' none
     assert any("mean goal of train (the floor), 512 demos:" in line and "no weights (a fixed goal)" in line
                for line in table.commands(rows))
 
@@ -284,3 +293,48 @@ def test_the_table_script_takes_the_named_tasks_in_their_order(tmp_path):
     bad = dry_run("hangbag", "bogus")
     assert bad.returncode == 2 and not bad.stdout and len(bad.stderr.splitlines()) == 1
     assert "unknown task 'bogus'; expected one of: hangbag hangproccloth-multimodal" in bad.stderr
+
+
+def table_of(tmp_path, kept: dict[str, dict], lines=(), draw=None) -> tuple[str, dict[str, str]]:
+    """The markdown of one unimodal table of 512 demos, and each row's last column by its name."""
+    paper = tomllib.loads((ROOT / "docs" / "results" / "paper.toml").read_text())["hangproccloth-unimodal"]
+    rows = {512: {table.PAPER_KEYS[v]: {**r, "num_train": 512} for v, r in kept.items()}}
+    text = "\n".join(table.markdown("hangproccloth-unimodal", paper, rows, list(lines), {512: draw} if draw else {}))
+    cells = {line.split(" | ")[0][2:]: line.split(" | ")[-1][:-2] for line in text.splitlines()
+             if line.startswith("| ") and line.count(" | ") == 9}
+    return text, cells
+
+
+DRAW = {"train": "1" * 64, "val": "2" * 64, "unseen": "3" * 64, "ood": "4" * 64}
+
+
+def test_a_row_deleted_and_kept_again_shows_both_scorings_and_results(tmp_path):
+    first, again = row("sd", 0.75), {**row("sd", 1.0), "weights_sha256": "cd" * 32}
+    cd = row("cd", 0.9)
+    lines = [scored(cd, 512), scored(first, 512, source="git 2c6e020"), scored(again, 512)]
+    text, cells = table_of(tmp_path, {"cd": cd, "sd": again}, lines)
+    assert "| SD | **1.00** (0.91-1.00) |" in text  # the kept row's result in the table
+    assert "scored 2 times; earlier: 2026-12-05: 0.75 / 0.75, weights `abababab`, git 2c6e020" in cells["SD"]
+    assert "scored once (the ledger's count)" in text and "scored" not in cells["TAX3D-CD"]
+
+
+def test_a_dp3_rows_line_says_last_weights_and_its_own_preset(tmp_path):
+    dp3 = {**row("dp3", 0.375), "weights": "last", "weights_chosen_on": "last step", "preset": "cpu-dp3"}
+    kept = {"cd": {**row("cd", 0.9), "preset": "cpu-multimodal"}, "cp": {**row("cp", 0.9), "preset": "cpu-multimodal"},
+            "dp3": dp3}
+    text, cells = table_of(tmp_path, kept, [scored(r, 512) for r in kept.values()])
+    assert "weights chosen on `val`" in text and "`--preset cpu-multimodal`" in text  # what most rows share
+    assert cells["DP3"].startswith("`--preset cpu-dp3`; last weights")
+    assert "last weights" not in cells["TAX3D-CD"]
+
+
+def test_a_row_on_another_draw_or_without_digests_is_marked(tmp_path):
+    kept = {"cd": {**row("cd", 0.9), "data_sha256": DRAW}, "cp": row("cp", 0.9),
+            "sd": {**row("sd", 0.5), "data_sha256": {**DRAW, "unseen": "5" * 64}}}
+    draw = table.check_draw("page.toml", 512, {"demos": 512, **DRAW}, kept)
+    text, cells = table_of(tmp_path, kept, [scored(r, 512) for r in kept.values()], draw)
+    assert "on the draw train `11111111`, val `22222222`, unseen `33333333`, ood `44444444`" in text
+    assert cells["TAX3D-CD"] == "" and cells["TAX3D-CP"] == "no data digests recorded"
+    assert cells["SD"] == "another draw: unseen `55555555`"
+    with pytest.raises(UsageError, match=r"^page.toml: draw of 512 demos: ood 666666666666 is recorded by no row"):
+        table.check_draw("page.toml", 512, {"demos": 512, **DRAW, "ood": "6" * 64}, kept)

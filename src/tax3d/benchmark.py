@@ -4,13 +4,13 @@ Every row (a variant) trains on the same demonstrations with the same preset and
 validate best on the `val` split, and is then scored once on the test episodes: `unseen` and `ood` demos from
 TEST_FIRST_INDEX on, which no choice has touched. A finished row's summary is written at once (to --keep too),
 and a rerun skips what is there, in OUT or in --keep: a row is never trained or scored again unless --rescore (score
-again) or --retrain (train again from the start, then score) asks, and its summary counts both.
+again) or --retrain (train again from the start, then score) asks, and its summary counts both. Every scoring is
+first appended to the ledger (tax3d.ledger), which no deletion or rerun of a row shortens.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import itertools
 import json
 import shlex
@@ -19,9 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
+from tax3d import ledger
 from tax3d.atomic import write_json, write_text
 from tax3d.config import PresetName
 from tax3d.errors import UsageError
+from tax3d.ledger import demos_digest
 from tax3d.options import NonNegative, OutputFolder, Positive
 from tax3d.table import ROW_KIND, ROW_VERSION
 
@@ -190,35 +192,6 @@ def _only(cls, **values) -> dict:
     return {k: v for k, v in values.items() if k in names and v is not None}
 
 
-def _feed(h, value) -> None:
-    import numpy as np
-
-    if isinstance(value, dict):
-        for key in sorted(value):
-            h.update(str(key).encode())
-            _feed(h, value[key])
-    elif isinstance(value, (list, tuple)):
-        for item in value:
-            _feed(h, item)
-    elif isinstance(value, np.ndarray):
-        h.update(f"{value.dtype}{value.shape}".encode())
-        h.update(np.ascontiguousarray(value).tobytes())
-    else:
-        h.update(repr(value).encode())
-
-
-def demos_digest(files) -> str:
-    """sha256 of the demos' names and contents (arrays, not file bytes, which hold write times): equal digests,
-    equal demos."""
-    from tax3d.data.format import load_demo
-
-    h = hashlib.sha256()
-    for path in files:
-        h.update(Path(path).name.encode())
-        _feed(h, load_demo(path))
-    return h.hexdigest()
-
-
 def _data_digests(args: Args, data: Path) -> dict:
     """The digest of each split a row used: its training demos, the val demos, the test episodes."""
     from tax3d.data.format import list_demos
@@ -264,7 +237,10 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
                                 splits="unseen,ood", data=data,
                                 first_index=args.first_index, episodes=args.episodes, samples=args.samples,
                                 workers=args.workers, device=args.device, out=args.out / variant / "eval"),
-                       progress=False)["summary"]
+                       progress=False, record=False)["summary"]
+    digests = _data_digests(args, data)
+    ledger.append(ledger.default_path(), ledger.scoring(args.task, args.num_train, variant, summary, digests,
+                                                        args.first_index, command()))
     run = args.out / variant / "train"
     validations = [] if checkpoint is None else [{"step": r["step"], "val_rmse": r["val_rmse"]}
                                                  for r in read_log(run / "log.jsonl") if "val_rmse" in r]
@@ -280,7 +256,7 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
            "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
                     "scorings": (row or {}).get("test", {}).get("scorings", 0) + 1},
            "trainings": (row or {}).get("trainings", 1) + (row is not None and args.retrain),
-           "splits": summary["splits"], "data_sha256": _data_digests(args, data),
+           "splits": summary["splits"], "data_sha256": digests,
            "command": command(), "machine": summary["machine"],
            "date": summary["date"]}
     write_json(args.out / variant / "row.json", row)

@@ -401,7 +401,9 @@ def format_table(table: dict) -> str:
     return "\n".join(lines)
 
 
-def evaluate(args: Args, progress: bool = True) -> dict:
+def evaluate(args: Args, progress: bool = True, record: bool = True) -> dict:
+    """Run the episodes and write the outputs; a scoring of test episodes goes in the ledger first (tax3d.ledger),
+    unless `record` is False (`tax3d benchmark` writes its own line, with the row)."""
     from tax3d.sim.tasks import get_task
 
     get_task(args.task)
@@ -437,6 +439,11 @@ def evaluate(args: Args, progress: bool = True) -> dict:
         "splits": summarise(results, splits),
         "policy_offset": list(get_task(args.task).policy_offset if args.policy_offset is None else args.policy_offset),
     }
+    if record:
+        from tax3d.ledger import record_eval
+
+        record_eval(args, summary, lambda split: _demos_from(_split_folder(args.data, split), args.first_index,
+                                                             args.episodes))
     _write_outputs(args, summary, results)
     kept.remove()
     return {"summary": summary, "results": results}

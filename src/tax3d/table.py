@@ -1,17 +1,23 @@
 """The paper's table of a task beside ours, row by row, from the rows that `tax3d benchmark --keep` writes.
 
-Rows are kept as docs/results/table/TASK/DEMOS/VARIANT.json (kind "table-row"): one protocol for all of them
-(weights chosen on `val`, scored once on the test episodes). Every row of the paper's table is listed; a row we
-have not run yet says so. Below it, each conclusion the paper draws from the table (its `claims` in paper.toml)
+Rows are kept as docs/results/table/TASK/DEMOS/VARIANT.json (kind "table-row"), every scoring of their test
+episodes in docs/results/table/ledger.jsonl (tax3d.ledger). The line above each table states its protocol from the
+rows' own fields (the preset, plan, weights and test episodes most of them share, how often the ledger says they were
+scored, the data draw the table names), and a row that departs from it says how in its last column: another preset
+or plan, last weights, another draw or no digests recorded, scored more than once (with each earlier score). Every
+row of the paper's table is listed; a row we have not run yet says so. Below it, each conclusion the paper draws from the table (its `claims` in paper.toml)
 is tested on our rows: a success rate is lower only when the two 95% intervals part ("holds"); when they overlap
 the difference is "within noise".
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 
 from tax3d import kept
+from tax3d import ledger as ledger_lines
+from tax3d.metrics import rate, split_rate
 
 ROW_KIND, ROW_VERSION = "table-row", 1
 PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": "CD-NAC", "cp_nac": "CP-NAC",
@@ -20,6 +26,7 @@ ORDER = ("CD", "CP", "CD-W", "CP-W", "CD-NAC", "CP-NAC", "SD", "SP", "RD", "RP",
 FIXED = ("floor", "ceiling")  # no paper row: the policy with the mean goal of train, and with each demo's own goal
 PAPER_METRICS = {"rmse": "rmse", "coverage_rmse": "coverage", "precision_rmse": "precision"}  # ours: the paper's
 SPLITS = ("train", "unseen", "ood")  # the columns of the paper's rows
+DRAW_FOLDERS = ("train", "val", "unseen", "ood")
 NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP", "floor": "mean goal of train (the floor)",
          "ceiling": "each demo's own goal (the ceiling)"}
 
@@ -42,7 +49,7 @@ def _success(row: dict | None, split: str) -> str:
         return "not run yet"
     s = row["splits"][split]
     low, high = s["success_ci95"]
-    return f"**{s['success_rate']:.2f}** ({low:.2f}-{high:.2f})"
+    return f"**{split_rate(s)}** ({low:.2f}-{high:.2f})"
 
 
 def _rmse(row: dict | None, split: str) -> str:
@@ -50,36 +57,143 @@ def _rmse(row: dict | None, split: str) -> str:
     return "-" if value is None else f"{value:.3f}"
 
 
-def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
+def _most(values, tie=None) -> object:
+    """The value most rows share (on a tie the least by `tie`, else the first in the table's order); None where
+    there is none."""
+    counts = Counter(v for v in values if v is not None)
+    order = list(counts)
+    return min(counts, key=lambda v: (-counts[v], tie(v) if tie else order.index(v))) if counts else None
+
+
+def _trained(row: dict) -> bool:
+    return row.get("weights_sha256") is not None
+
+
+def _test(row: dict) -> tuple:
+    t = row["test"]
+    return t["episodes"], t["first_index"], t["samples"]
+
+
+def times(n: int) -> str:
+    return "once" if n == 1 else "in no line of the ledger" if n == 0 else f"{n} times"
+
+
+def _digest(value: str | None) -> str:
+    return "none" if value is None else f"`{value[:8]}`"
+
+
+def _earlier(line: dict) -> str:
+    """An earlier scoring of a row, as the ledger holds it."""
+    won, episodes = line.get("successes"), line.get("episodes") or {}
+    result = ("no result kept" if won is None
+              else " / ".join(rate(won[k], episodes[k]) for k in ("unseen", "ood") if k in won))
+    weights = f", weights `{line['weights_sha256'][:8]}`" if line.get("weights_sha256") else ""
+    source = f", {line['source']}" if line.get("source") else ""
+    return f"{line.get('date') or 'undated'}: {result}{weights}{source}"
+
+
+class Protocol:
+    """What most rows of one table share, and how each row departs from it."""
+
+    def __init__(self, task: str, demos: int, kept: dict[str, dict], lines: list[dict], draw: dict | None):
+        trained = [r for r in kept.values() if _trained(r)]
+        self.task, self.demos, self.lines, self.draw = task, demos, lines, draw
+        self.preset = _most(r.get("preset") for r in trained)
+        self.minutes = _most(r["minutes"] for r in trained)
+        self.weights = _most(r["weights_chosen_on"] for r in trained)
+        self.test = _most(_test(r) for r in kept.values())
+        self.scored = _most((len(self.scorings(r)) for r in kept.values()), tie=lambda n: n)
+
+    def scorings(self, row: dict) -> list[dict]:
+        return ledger_lines.of_row(self.lines, self.task, self.demos, row["variant"])
+
+    def line(self, like: str) -> str:
+        episodes, first, samples = self.test
+        weights = "weights chosen on `val`" if self.weights == "val" else f"weights: {self.weights}"
+        draw = ("the table names no draw of its demonstrations" if self.draw is None else
+                "on the draw " + ", ".join(f"{k} {_digest(self.draw[k])}" for k in DRAW_FOLDERS))
+        return (f"**{self.demos} training demonstrations** ({like}); the protocol its rows share: `--preset "
+                f"{self.preset}`, {self.minutes:g}-minute plans, {weights}; {episodes} test episodes a split "
+                f"(demo_{first} on), {samples} goal samples an episode, scored {times(self.scored)} (the ledger's count); "
+                f"{draw}. A row that departs from it says how in its last column. Success with its 95% Wilson "
+                "interval:")
+
+    def departures(self, row: dict) -> str:
+        """How the row departs from the table's protocol, from its own fields and its lines in the ledger."""
+        out = []
+        if _trained(row):
+            if row.get("preset") != self.preset:
+                out.append(f"`--preset {row.get('preset')}`")
+            if row["minutes"] != self.minutes:
+                out.append(f"{row['minutes']:g}-minute plan")
+            if row["weights_chosen_on"] != self.weights:
+                out.append("last weights" if row["weights_chosen_on"] == "last step"
+                           else f"weights: {row['weights_chosen_on']}")
+        if _test(row) != self.test:
+            episodes, first, samples = _test(row)
+            out.append(f"{episodes} episodes from demo_{first}, {samples} samples")
+        digests = row.get("data_sha256")
+        if not digests:
+            out.append("no data digests recorded")
+        elif self.draw is not None and any(digests.get(k) != self.draw[k] for k in DRAW_FOLDERS):
+            out.append("another draw: " + ", ".join(f"{k} {_digest(digests.get(k))}" for k in DRAW_FOLDERS
+                                                    if digests.get(k) != self.draw[k]))
+        scorings = self.scorings(row)
+        if len(scorings) != self.scored:
+            earlier = [_earlier(x) for x in scorings if not ledger_lines.is_kept_row(x, row)]
+            out.append(f"scored {times(len(scorings))}" + (f"; earlier: {'; '.join(earlier)}" if earlier else ""))
+        if scorings and not ledger_lines.is_kept_row(scorings[-1], row):
+            out.append("its last scoring in the ledger is not the kept row")
+        if row.get("trainings", 1) > 1:
+            out.append(f"trained {row['trainings']} times")
+        return "; ".join(out)
+
+
+def check_draw(where: str, demos: int, draw: dict, kept: dict[str, dict]) -> dict:
+    """A table's draw as its page names it: the four folders' digests, each one that a row of the table records."""
+    from tax3d.errors import UsageError
+
+    if sorted(draw) != sorted(("demos", *DRAW_FOLDERS)):
+        raise UsageError(f"{where}: draw of {demos} demos names {', '.join(sorted(draw))}; expected demos and the "
+                         f"digests of {', '.join(DRAW_FOLDERS)}")
+    for folder in DRAW_FOLDERS:
+        if not any((r.get("data_sha256") or {}).get(folder) == draw[folder] for r in kept.values()):
+            raise UsageError(f"{where}: draw of {demos} demos: {folder} {str(draw[folder])[:12]} is recorded by no row "
+                             f"of the table; expected the digests a kept row records")
+    return {k: draw[k] for k in DRAW_FOLDERS}
+
+
+def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]], lines: list[dict] = (),
+             draws: dict[int, dict] | None = None) -> list[str]:
     """One table per training-set size: each of the paper's rows (at smaller sizes, those we ran), its success and
-    RMSE beside ours."""
+    RMSE beside ours, and how it departs from the protocol of the table; `lines` the ledger, `draws` the draw each
+    table names (tax3d.table.check_draw)."""
     paper_rows = paper.get("rows", {})
     keys = [k for k in ORDER if k in paper_rows or k in FIXED]
-    lines = []
+    out = []
     paper_demos = paper.get("demos", [None])[0]
     for demos in sorted(rows):
         kept = rows[demos]
-        first = next((r for r in kept.values() if r.get("preset")), next(iter(kept.values())))
+        protocol = Protocol(task, demos, kept, list(lines), (draws or {}).get(demos))
         like = "the paper's count" if demos == paper_demos else f"the paper trains on {paper_demos}"
-        lines += [f"**{demos} training demonstrations** ({like}); every row `--preset {first['preset']}`, "
-                  f"{first['minutes']:g}-minute plans on one core, weights chosen on `val`, scored once on "
-                  f"{first['test']['episodes']} test episodes a split (demo_{first['test']['first_index']} on), "
-                  f"{first['test']['samples']} goal samples an episode; success with its 95% Wilson interval:", "",
-                  "| row | success unseen | paper | success ood | paper | RMSE unseen | paper | RMSE ood | paper |",
-                  "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+        out += [protocol.line(like), "",
+                "| row | success unseen | paper | success ood | paper | RMSE unseen | paper | RMSE ood | paper | "
+                "departs from the protocol |",
+                "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
         # below the largest size only the rows run there (TAX3D-CD and -CP at the paper's count) are listed
         listed = keys if demos == max(rows) else [k for k in keys if k in kept]
         for key in listed:
             row, theirs = kept.get(key), paper_rows.get(key, {})
             rmse = theirs.get("rmse", (None, None, None))
             success = theirs.get("success", (None, None, None))
-            lines.append(f"| {NAMES.get(key, key)} | {_success(row, 'unseen')} | {cell(success[1], '.2f')} | "
-                         f"{_success(row, 'ood')} | {cell(success[2], '.2f')} | {_rmse(row, 'unseen')} | "
-                         f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} |")
-        lines.append("")
-        lines += _goal_table(listed, kept, paper_rows)
-    lines += conclusions(paper, rows)
-    return lines
+            out.append(f"| {NAMES.get(key, key)} | {_success(row, 'unseen')} | {cell(success[1], '.2f')} | "
+                       f"{_success(row, 'ood')} | {cell(success[2], '.2f')} | {_rmse(row, 'unseen')} | "
+                       f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} | "
+                       f"{'' if row is None else protocol.departures(row)} |")
+        out.append("")
+        out += _goal_table(listed, kept, paper_rows)
+    out += conclusions(paper, rows)
+    return out
 
 
 def _goal_table(keys: list[str], kept: dict[str, dict], paper_rows: dict) -> list[str]:
@@ -129,11 +243,13 @@ def _check(kept: dict, paper_rows: dict, claim: dict, worse: str, than: str | No
     if than is None:  # `reaches`: our success against the paper's
         ours, theirs = row["splits"][split], _paper_success(paper_rows, key, split)
         verdict = HOLDS if ours["success_rate"] >= theirs - claim.get("margin", 0.0) - 1e-9 else FAILS
-        return verdict, f"{NAMES.get(key, key)} {split} {ours['success_rate']:.2f} (paper {theirs:.2f})"
+        return verdict, f"{NAMES.get(key, key)} {split} {split_rate(ours)} (paper {theirs:.2f})"
     other_key, other_split = than.split(":")
     other = kept[other_key]
     a, b = _value(row, split, metric), _value(other, other_split, metric)
-    text = f"{NAMES.get(key, key)} {split} {a:.2f} vs {NAMES.get(other_key, other_key)} {other_split} {b:.2f}"
+    shown = ((split_rate(row["splits"][split]), split_rate(other["splits"][other_split])) if metric == "success"
+             else (f"{a:.2f}", f"{b:.2f}"))
+    text = f"{NAMES.get(key, key)} {split} {shown[0]} vs {NAMES.get(other_key, other_key)} {other_split} {shown[1]}"
     if metric != "success":  # an RMSE: worse when it is `factor` times the other's
         return (HOLDS if a > claim.get("factor", 1.0) * b else FAILS), text
     if a >= b:
@@ -202,6 +318,11 @@ def conclusions(paper: dict, rows: dict[int, dict[str, dict]]) -> list[str]:
     return lines
 
 
+def _gap(value: float) -> str:
+    """A difference of two rates, to the places it needs (the paper's have two, ours up to three)."""
+    return f"{value:.2f}" if abs(round(value, 2) - round(value, 3)) < 1e-9 else f"{value:.3f}"
+
+
 def verdict(paper: dict, rows: dict[int, dict[str, dict]]) -> str:
     """One sentence: at each training-set size, whether TAX3D reaches the paper's success on the test splits."""
     claim = next((c for c in paper.get("claims", []) if "reaches" in c and c.get("metric", "success") == "success"),
@@ -219,12 +340,13 @@ def verdict(paper: dict, rows: dict[int, dict[str, dict]]) -> str:
         parts.append(f"with {demos} training demonstrations " + (
             f"TAX3D's {len(gaps)} success rates reach the paper's (within {margin:.2f})" if not short else
             f"{len(short)} of TAX3D's {len(gaps)} success rates fall short of the paper's by "
-            + (f"{min(short):.2f}" if len(short) == 1 else f"{min(short):.2f}-{max(short):.2f}")))
+            + (_gap(min(short)) if len(short) == 1 else f"{_gap(min(short))}-{_gap(max(short))}")))
     return ("Under one protocol, " + "; ".join(parts) + " (TAX3D-CD and TAX3D-CP on unseen and ood).") if parts else ""
 
 
-def commands(rows: dict[int, dict[str, dict]]) -> list[str]:
-    """Each kept row's command, machine, date, weights and how often its test episodes were scored."""
+def commands(rows: dict[int, dict[str, dict]], ledger: list[dict] = ()) -> list[str]:
+    """Each kept row's command, machine, date, weights and how often the ledger says its test episodes were
+    scored."""
     lines = []
     for demos in sorted(rows):
         for key in ORDER:
@@ -239,8 +361,9 @@ def commands(rows: dict[int, dict[str, dict]]) -> list[str]:
             digests = row.get("data_sha256")  # rows kept before the digests were recorded have none
             episodes = ("" if digests is None else
                         f" (unseen `{digests['unseen'][:12]}`, ood `{digests['ood'][:12]}`)")
+            scored = len(ledger_lines.of_row(list(ledger), row["task"], demos, row["variant"]))
             lines.append(f"- {NAMES.get(key, key)}, {demos} demos: `{row['command']}` on {row['machine']}, "
-                         f"{row['date']}; {weights}; test episodes{episodes} scored {row['test']['scorings']} "
-                         "time(s)" + (f"; trained {row['trainings']} times, the earlier weights set aside by "
+                         f"{row['date']}; {weights}; test episodes{episodes} scored {times(scored)} (the ledger)"
+                         + (f"; trained {row['trainings']} times, the earlier weights set aside by "
                                       "`--retrain` after a fix" if row.get("trainings", 1) > 1 else ""))
     return lines

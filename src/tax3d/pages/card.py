@@ -17,6 +17,7 @@ from pathlib import Path
 from tax3d import kept
 from tax3d.commands import shown
 from tax3d.errors import UsageError
+from tax3d.metrics import split_rate
 from tax3d.pages.page import SPLITS, Page, cell
 from tax3d.table import NAMES, PAPER_KEYS
 
@@ -38,7 +39,7 @@ def success_table(splits: dict, paper: dict | None) -> list[str]:
         column = SPLITS.index(name) if name in SPLITS else None
         paper_success = paper["success"][column] if paper and column is not None else None
         paper_rmse = paper["rmse"][column] if paper and column is not None and "rmse" in paper else None
-        lines.append(f"| {name} | {split['episodes']} | {split['success_rate']:.2f} | {cell(paper_success, '{:.2f}')} "
+        lines.append(f"| {name} | {split['episodes']} | {split_rate(split)} | {cell(paper_success, '{:.2f}')} "
                      f"| {cell(split.get('rmse'), '{:.3f}')} | {cell(paper_rmse, '{:.3f}')} "
                      f"| {cell(split.get('coverage_rmse'), '{:.3f}')} |")
     return lines
@@ -156,7 +157,7 @@ def bounds_line(row: dict, bounds: dict[str, dict]) -> list[str]:
     said = []
     for key, what in (("floor", "the mean goal of train (the floor)"), ("ceiling", "each demo's own goal (the ceiling)")):
         if key in bounds:
-            rates = " / ".join(f"{bounds[key]['splits'][split]['success_rate']:.2f}" for split in row["splits"])
+            rates = " / ".join(split_rate(bounds[key]["splits"][split]) for split in row["splits"])
             said.append(f"{what} hangs {rates}")
     return [f"On the same episodes ({' / '.join(row['splits'])}), {' and '.join(said)}.", ""] if said else []
 
@@ -176,7 +177,7 @@ def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict, bounds:
         column = SPLITS.index(split)
         paper_rmse = paper["rmse"][column] if paper and "rmse" in paper else None
         low, high = s["success_ci95"]
-        lines.append(f"| {split} | {s['episodes']} | {s['success_rate']:.2f} ({low:.2f}-{high:.2f}) | "
+        lines.append(f"| {split} | {s['episodes']} | {split_rate(s)} ({low:.2f}-{high:.2f}) | "
                      f"{cell(paper['success'][column] if paper else None, '{:.2f}')} | {cell(s.get('rmse'), '{:.3f}')} "
                      f"| {cell(paper_rmse, '{:.3f}')} | {cell(s.get('coverage_rmse'), '{:.3f}')} | "
                      f"{cell(s.get('precision_rmse'), '{:.3f}')} |")

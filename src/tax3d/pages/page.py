@@ -16,6 +16,7 @@ from pathlib import Path
 from tax3d import kept
 from tax3d.commands import shown
 from tax3d.errors import UsageError
+from tax3d.metrics import split_rate
 
 SPLITS = ("train", "unseen", "ood")
 ALIASES = {"success": "success_rate"}
@@ -102,8 +103,18 @@ class Page:
             except (KeyError, IndexError, ValueError):
                 raise UsageError(f"{self.file.name}: placeholder {m.group(0)}: no such value in the kept "
                                  "summaries") from None
-            return format(value, m.group(2)) if m.group(2) else _fmt(value)
+            if m.group(2):
+                return format(value, m.group(2))
+            return self._rate(m.group(1)) or _fmt(value)
         return PLACEHOLDER.sub(sub, text.strip())
+
+    def _rate(self, path: str) -> str | None:
+        """A success rate as exact as its split's episodes allow (tax3d.metrics.rate), None for any other value."""
+        parent, _, last = path.rpartition(".")
+        if ALIASES.get(last, last) != "success_rate" or parent.split(".")[0] == "paper":
+            return None
+        split = self.value(parent)
+        return split_rate(split) if isinstance(split, dict) and split.get("episodes") else None
 
     # -- prose ----------------------------------------------------------------------------------------------------
     def verdict(self) -> str:

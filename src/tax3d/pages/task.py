@@ -4,18 +4,21 @@ then every row, the ablations, coverage and precision, validation curves, the no
 Beside what every declaration holds (tax3d.pages.page), a task page's holds `task` (its key in paper.toml),
 `definitions`, `headline` (at most 8 row ids or `paper:ROW`), optional `readme`, `setup`, `sets`, `sets_note`,
 `spread_note`, and arrays of tables `row` (id, label, summary: a kept evaluation, optional paper, group =
-"ablation", made, config, shipped) and `curve` (id, label, summary: a kept validation curve or training log).
-Where `tax3d benchmark --keep` has kept rows for the task (docs/results/table/TASK/), the paper's table under that
-one protocol comes first.
+"ablation", made, config, shipped), `curve` (id, label, summary: a kept validation curve or training log) and `draw`
+(demos, and the digests of train, val, unseen and ood: the draw of the demonstrations that table of the protocol
+names, tax3d.table.check_draw). Where `tax3d benchmark --keep` has kept rows for the task
+(docs/results/table/TASK/), the paper's table under that one protocol comes first, each row's scorings from the
+ledger (docs/results/table/ledger.jsonl).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from tax3d import table
+from tax3d import ledger, table
 from tax3d.commands import EARLIER, shown
 from tax3d.errors import UsageError
+from tax3d.metrics import split_rate
 from tax3d.pages import plots
 from tax3d.pages.card import shipped_rows
 from tax3d.pages.page import SPLITS, Page, cell, fold
@@ -48,12 +51,17 @@ class TaskPage(Page):
         return row["label"], rmse, success, episodes
 
     # -- tables ---------------------------------------------------------------------------------------------------
+    def rate(self, ref: str, split: str, value) -> str:
+        """A row's success on a split, as exact as its episodes allow; the paper's as it prints them."""
+        d = None if ref.startswith("paper:") else self.data[ref].get(split)
+        return split_rate(d) if d and d.get("episodes") else cell(value, "{:.2f}")
+
     def table(self, refs: list[str]) -> list[str]:
         lines = ["| | success train | success unseen | success ood | RMSE train | RMSE unseen | RMSE ood | episodes |",
                  "| --- | --- | --- | --- | --- | --- | --- | --- |"]
         for ref in refs:
             label, rmse, success, episodes = self.metrics(ref)
-            lines.append(f"| {label} | " + " | ".join(cell(v, "{:.2f}") for v in success) + " | "
+            lines.append(f"| {label} | " + " | ".join(self.rate(ref, k, v) for k, v in zip(SPLITS, success)) + " | "
                          + " | ".join(cell(v, "{:.3f}") for v in rmse) + f" | {episodes} |")
         return lines
 
@@ -147,18 +155,33 @@ class TaskPage(Page):
         return lines
 
     # -- the page -------------------------------------------------------------------------------------------------
+    def ledger(self) -> list[dict]:
+        return ledger.read(self.root / "table" / "ledger.jsonl")
+
+    def draws(self, rows: dict[int, dict[str, dict]]) -> dict[int, dict]:
+        """The draw each table of the protocol names, checked against its rows."""
+        draws = {}
+        for draw in self.spec.get("draw", []):
+            demos = draw.get("demos")
+            if demos not in rows:
+                raise UsageError(f"{self.file.name}: draw of {demos} demos: no table of that size; expected one of "
+                                 f"{', '.join(map(str, sorted(rows)))}")
+            draws[demos] = table.check_draw(self.file.name, demos, draw, rows[demos])
+        return draws
+
     def protocol(self) -> list[str]:
         """The paper's table beside the rows of `tax3d benchmark` (docs/results/table/TASK/), when there are any."""
         rows = table.load_rows(self.root / "table" / self.spec.get("task", ""))
         if not rows:
             return []
+        lines = self.ledger()
         shipped = [f"the {table.NAMES.get(key, key)} row at {demos} demos as [{checkpoint}](../../{checkpoint}/README.md)"
                    for path, checkpoint in shipped_rows(self.root, self.spec["task"])
                    for demos, key in [(int(Path(path).parent.name), table.PAPER_KEYS[Path(path).stem])]]
         ship = [f"Shipped: {', '.join(shipped)}, each with its model card.", ""] if shipped else []
         return [table.verdict(self.paper, rows), "", "## The paper's table under one protocol", "",
-                *table.markdown(self.spec["task"], self.paper, rows), *ship, *self.notes("table"),
-                *fold("How each row was made", table.commands(rows))]
+                *table.markdown(self.spec["task"], self.paper, rows, lines, self.draws(rows)), *ship,
+                *self.notes("table"), *fold("How each row was made", table.commands(rows, lines))]
 
     def markdown(self) -> str:
         spec = self.spec
@@ -212,12 +235,15 @@ class TaskPage(Page):
         best = self.spec["readme"]
         rows = table.load_rows(self.root / "table" / self.spec.get("task", ""))
         largest = next((rows[n]["CD"] for n in sorted(rows, reverse=True) if "CD" in rows[n]), None)
-        if largest is not None:  # the table's protocol: weights chosen on val, test episodes scored once
+        if largest is not None:  # the table's protocol, from the row's own fields and its lines in the ledger
             theirs = " / ".join(f"{self.paper['rows']['CD']['success'][SPLITS.index(k)]:.2f}" for k in ("unseen", "ood"))
-            ours = " / ".join(f"{largest['splits'][k]['success_rate']:.2f} ({largest['splits'][k]['success_ci95'][0]:.2f}-"
+            ours = " / ".join(f"{split_rate(largest['splits'][k])} ({largest['splits'][k]['success_ci95'][0]:.2f}-"
                               f"{largest['splits'][k]['success_ci95'][1]:.2f})" for k in ("unseen", "ood"))
+            scored = len(ledger.of_row(self.ledger(), largest["task"], largest["num_train"], largest["variant"]))
+            chosen = ("weights chosen on `val`" if largest["weights_chosen_on"] == "val"
+                      else f"weights: {largest['weights_chosen_on']}")
             label = (f"TAX3D-CD, {largest['num_train']} demos, `--preset {largest['preset']}`, "
-                     f"{largest['minutes']:g}-minute plan; weights chosen on `val`, test scored once")
+                     f"{largest['minutes']:g}-minute plan; {chosen}, test scored {table.times(scored)}")
             return (f"| {best['task']} | {ours} ({label}) | {theirs} | "
                     f"[docs/results/{self.name}.md](docs/results/{self.name}.md) |")
         d, paper = self.data[best["row"]], self.paper["rows"][best["paper"]]
