@@ -26,16 +26,16 @@ def test_arms_train_side_by_side_and_keep_their_curves(tmp_path):
     write_demos(tmp_path / "train", 5)
     write_demos(tmp_path / "val", 2, seed=1)
     common = ["--task", "custom", "--train", str(tmp_path / "train"), "--num-train", "4", "--val", str(tmp_path / "val"),
-              "--out", str(tmp_path / "out"), "--steps", "30", "--val-every", "10", "--keep-every", "20",
-              "--val-demos", "2", "--keep", str(tmp_path / "keep.json"),
+              "--out", str(tmp_path / "out"), "--steps", "20", "--val-every", "10", "--keep-every", "20",
+              "--val-demos", "2", "--val-samples", "1", "--keep", str(tmp_path / "keep.json"),
               "--arm", "plain", SMALL, "--arm", "scene", SMALL + " --data.rotate_scene True"]
     done = run(*common)
     assert done.returncode == 0, done.stderr
     study = kept.load(tmp_path / "keep.json", ("paper-count",))
     assert study["num_train"] == 4 and set(study["digests"]) == {"train", "val"}
     for name, arm in study["arms"].items():
-        assert [p["step"] for p in arm["curve"]] == [10, 20, 30]
-        assert [p["samples"] for p in arm["curve"]] == [40, 80, 120]  # steps x batch 4
+        assert [p["step"] for p in arm["curve"]] == [10, 20]
+        assert [p["samples"] for p in arm["curve"]] == [40, 80]  # steps x batch 4
         assert arm["kept_steps"] == [20] and (tmp_path / "out" / name / "steps" / "20" / "model.safetensors").is_file()
         assert arm["command"].startswith("tax3d train --preset cpu --model.variant cd ")
         assert "demo_3.npz" in arm["command"] and "demo_4.npz" not in arm["command"]  # the first 4 of 5
