@@ -1,6 +1,9 @@
-"""The torch device a command runs on, from its `--device`-style option: auto, cpu, cuda or cuda:K."""
+"""The torch device a command runs on, from its `--device`-style option (auto, cpu, cuda or cuda:K), and the preset
+that fits the machine where none is named."""
 
 from __future__ import annotations
+
+import sys
 
 import torch
 
@@ -18,3 +21,14 @@ def pick_device(name: str, option: str = "--device") -> torch.device:
     if name.startswith("cuda:") and int(name[5:]) >= torch.cuda.device_count():
         raise UsageError(f"{option} {name}: only {torch.cuda.device_count()} CUDA devices are visible")
     return torch.device(name)
+
+
+def machine_preset(name: str | None, without_gpu: str) -> str:
+    """The preset asked for, or the one that fits this machine: paper with a CUDA GPU, `without_gpu` without (said
+    on stderr)."""
+    if name is not None:
+        return name
+    name = "paper" if torch.cuda.is_available() else without_gpu
+    print(f"--preset not given: using {name} ({'a CUDA GPU is' if name == 'paper' else 'no CUDA GPU is'} "
+          f"available)", file=sys.stderr)
+    return name

@@ -201,13 +201,7 @@ def config_of_command(argv: list[str]) -> cfg.Config:
 
 
 def default_preset(name: str | None) -> str:
-    """The preset asked for, or the one that fits this machine: paper with a GPU, cpu-fast without (said on stderr)."""
-    if name is not None:
-        return name
-    name = "paper" if torch.cuda.is_available() else "cpu-fast"
-    print(f"--preset not given: using {name} ({'a CUDA GPU is' if name == 'paper' else 'no CUDA GPU is'} "
-          f"available)", file=sys.stderr)
-    return name
+    return devices.machine_preset(name, "cpu-fast")
 
 
 def pick_device(name: str) -> torch.device:

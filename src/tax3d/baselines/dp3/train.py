@@ -33,7 +33,7 @@ from tax3d.baselines.dp3.model import DP3
 from tax3d.config import apply_overrides
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import data_task
-from tax3d.devices import pick_device
+from tax3d.devices import machine_preset, pick_device
 from tax3d.errors import UsageError
 from tax3d.options import OutputFolder
 from tax3d.plan import Plan, timing_step
@@ -73,13 +73,7 @@ def resolve_config(args: Args, last: Path | None) -> cfg.DP3Config:
 
 
 def default_preset(name: str | None) -> str:
-    """The preset asked for, or the one that fits this machine: paper with a GPU, cpu without (said on stderr)."""
-    if name is not None:
-        return name
-    name = "paper" if torch.cuda.is_available() else "cpu"
-    print(f"--preset not given: using {name} ({'a CUDA GPU is' if name == 'paper' else 'no CUDA GPU is'} "
-          f"available)", file=sys.stderr)
-    return name
+    return machine_preset(name, "cpu")
 
 
 def step_batch(dataset: TrajectoryDataset, config: cfg.DP3Config, step: int, device: torch.device) -> tuple:
