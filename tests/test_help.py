@@ -10,10 +10,6 @@ import pytest
 from tax3d.cli import COMMANDS, main
 from tax3d.config import field_docs
 
-NOT_HERE = {("benchmark", "task")}
-"""options described in a module this test does not hold (tax3d.benchmark's --task), left to its own change"""
-
-
 def options_of(cls, prefix=""):
     """(option name, its docstring) of every field of an Args class, nested sections included."""
     docs = field_docs(cls)
@@ -26,7 +22,7 @@ def options_of(cls, prefix=""):
 @pytest.mark.parametrize("name", list(COMMANDS))
 def test_every_option_is_described(name):
     module = importlib.import_module(COMMANDS[name][0])
-    undescribed = [option for option, doc in options_of(module.Args) if not doc and (name, option) not in NOT_HERE]
+    undescribed = [option for option, doc in options_of(module.Args) if not doc]
     assert not undescribed, f"tax3d {name}: {undescribed}"
 
 

@@ -47,6 +47,7 @@ class Args:
     """Train and score each row of a task's table; rerun the same command to continue after a stop."""
 
     task: str = "hangproccloth-simple"
+    """hangproccloth-simple, hangproccloth-unimodal, hangproccloth-multimodal or hangbag"""
     variants: str = "cd,cp"
     """comma-separated rows: cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd, rp, dp3 (the baseline, trained on the
     same demonstrations with their trajectories, for the same minutes; its last weights), and the fixed goals that
