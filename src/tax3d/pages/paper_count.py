@@ -67,7 +67,7 @@ class PaperCountPage(Page):
         return found
 
     def table(self, data: dict) -> list[str]:
-        lines = ["| arm | options on `--preset " + data["preset"] + "` | samples seen (hours, one core) | lowest val "
+        lines = ["| arm | options on `--preset " + data["preset"] + "` | samples seen (wall hours) | lowest val "
                  "RMSE (at samples) | last val RMSE | last training loss | policy on `val` (at step) |",
                  "| --- | --- | --- | --- | --- | --- | --- |"]
         for name, arm in data["arms"].items():
