@@ -33,7 +33,7 @@ from pathlib import Path
 
 from tax3d import kept, provenance
 from tax3d.atomic import write_json
-from tax3d.ledger import demos_digest
+from tax3d.digest import demos_digest
 from tax3d.checkpoint import read_log
 from tax3d.data.format import list_demos
 

@@ -23,7 +23,7 @@ from tax3d import ledger
 from tax3d.atomic import write_json, write_text
 from tax3d.config import PresetName
 from tax3d.errors import UsageError
-from tax3d.ledger import demos_digest
+from tax3d.digest import demos_digest
 from tax3d.options import NonNegative, OutputFolder, Positive
 from tax3d.table import ROW_KIND, ROW_VERSION
 

@@ -12,10 +12,9 @@ import pickle
 import shutil
 from pathlib import Path
 
-import numpy as np
-
 from tax3d.atomic import write_bytes
 from tax3d.data.format import _PlainUnpickler
+from tax3d.digest import feed
 
 FOLDER = "episodes"
 IGNORED = ("checkpoint", "device", "denoising")
@@ -23,28 +22,9 @@ IGNORED = ("checkpoint", "device", "denoising")
 checkpoint's path; the first episode's denoising steps are kept when its result carries them)"""
 
 
-def _feed(h, value) -> None:
-    if isinstance(value, dict):
-        for key in sorted(value, key=str):
-            h.update(repr(key).encode())
-            _feed(h, value[key])
-    elif isinstance(value, (list, tuple)):
-        h.update(b"[")
-        for item in value:
-            _feed(h, item)
-        h.update(b"]")
-    elif isinstance(value, np.ndarray):
-        h.update(f"{value.dtype}{value.shape}".encode())
-        h.update(np.ascontiguousarray(value).tobytes())
-    elif hasattr(value, "__dict__"):  # the mean-goal baseline
-        _feed(h, vars(value))
-    else:
-        h.update(repr(value).encode())
-
-
 def job_digest(job, weights_sha256: str | None) -> str:
     h = hashlib.sha256((weights_sha256 or "").encode())
-    _feed(h, {f.name: getattr(job, f.name) for f in dataclasses.fields(job) if f.name not in IGNORED})
+    feed(h, {f.name: getattr(job, f.name) for f in dataclasses.fields(job) if f.name not in IGNORED})
     return h.hexdigest()
 
 

@@ -19,6 +19,7 @@ import json
 import os
 from pathlib import Path
 
+from tax3d.digest import demos_digest
 from tax3d.errors import UsageError
 
 ENV = "TAX3D_LEDGER"
@@ -105,35 +106,6 @@ def is_kept_row(line: dict, row: dict) -> bool:
     """Whether the line is the scoring whose results the kept row holds."""
     return (line.get("weights_sha256") == row.get("weights_sha256")
             and line.get("successes") == successes(row["splits"]))
-
-
-def _feed(h, value) -> None:
-    import numpy as np
-
-    if isinstance(value, dict):
-        for key in sorted(value):
-            h.update(str(key).encode())
-            _feed(h, value[key])
-    elif isinstance(value, (list, tuple)):
-        for item in value:
-            _feed(h, item)
-    elif isinstance(value, np.ndarray):
-        h.update(f"{value.dtype}{value.shape}".encode())
-        h.update(np.ascontiguousarray(value).tobytes())
-    else:
-        h.update(repr(value).encode())
-
-
-def demos_digest(files) -> str:
-    """sha256 of the demos' names and contents (arrays, not file bytes, which hold write times): equal digests,
-    equal demos."""
-    from tax3d.data.format import load_demo
-
-    h = hashlib.sha256()
-    for path in files:
-        h.update(Path(path).name.encode())
-        _feed(h, load_demo(path))
-    return h.hexdigest()
 
 
 def _tests(first: int, episodes: int, size: int) -> bool:

@@ -5,13 +5,12 @@ other is refused, naming what differs, so that a folder's files never describe a
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
-import zipfile
 from pathlib import Path
 
 from tax3d import config as cfg
 from tax3d.atomic import write_text
+from tax3d.digest import demos_digest
 from tax3d.errors import UsageError
 
 DIGEST_NAME = "demos.json"
@@ -65,23 +64,8 @@ def shown(value) -> str:
 # --- the demonstrations ----------------------------------------------------------------------------------------
 
 
-def digest(files: list[Path]) -> str:
-    """sha256 of the demos' names and the arrays they hold (the npz members, not the zip's write times)."""
-    h = hashlib.sha256()
-    for path in files:
-        h.update(Path(path).name.encode() + b"\0")
-        try:
-            with zipfile.ZipFile(path) as archive:
-                for member in sorted(archive.namelist()):
-                    h.update(member.encode() + b"\0")
-                    h.update(archive.read(member))
-        except (OSError, zipfile.BadZipFile):
-            h.update(Path(path).read_bytes())
-    return h.hexdigest()
-
-
 def demo_digests(train: list[Path], val: list[Path]) -> dict:
-    return {"train": digest(train), "val": digest(val) if val else None}
+    return {"train": demos_digest(train), "val": demos_digest(val) if val else None}
 
 
 def check_same_demos(out: Path, digests: dict) -> None:
