@@ -4,7 +4,7 @@ as long as it takes, resumed from each arm's last/ across calls.
     python benchmarks/paper_count.py --task hangproccloth-unimodal --train data/unimodal/train --num-train 64 \
         --val data/unimodal/val --out runs/paper-count/unimodal --hours 2.5 \
         --arm cpu "" --arm scene "--data.rotate-scene True" \
-        --keep docs/results/studies/paper-count/unimodal.json
+        --keep docs/results/paper-count/unimodal-cpu-scene.json
 
 Each `--arm NAME OPTIONS` is `tax3d train --preset PRESET --model.variant cd` on the first NUM_TRAIN demos of
 --train, with the paper's schedule (`--steps`, 500,000 at batch 16: 8M samples, App. B.2) and the arm's own options,
@@ -33,9 +33,9 @@ from pathlib import Path
 
 from tax3d import kept, provenance
 from tax3d.atomic import write_json
-from tax3d.digest import demos_digest
 from tax3d.checkpoint import read_log
 from tax3d.data.format import list_demos
+from tax3d.digest import demos_digest
 
 WRITE_EVERY = 300  # seconds between two writes of --keep while the arms train
 OPTIONAL = ("val_grip_error", "val_coverage_rmse", "val_precision_rmse")  # logged where the demos allow
@@ -51,8 +51,8 @@ def train_files(args) -> list[Path]:
 
 def train_command(args, name: str, options: str) -> list[str]:
     """The arm's `tax3d train` command (the folder itself where it holds exactly NUM_TRAIN demos)."""
-    files = train_files(args)
-    train = [str(args.train)] if len(list_demos(args.train)) == len(files) else [str(f) for f in files]
+    files, every = train_files(args), list_demos(args.train)
+    train = [str(args.train)] if len(every) == len(files) else [str(f) for f in files]
     return ["tax3d", "train", "--preset", args.preset, "--model.variant", "cd", "--out", str(args.out / name),
             "--data.train", *train, "--data.val", str(args.val), "--data.task", args.task,
             "--train.steps", str(args.steps), "--train.val-every", str(args.val_every),
