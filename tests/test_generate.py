@@ -132,3 +132,18 @@ def test_each_reset_loads_its_own_cloth():
             assert len(state.cloth) == build_cloth(params).num_vertices
             extent = state.cloth.max(0) - state.cloth.min(0)  # rows span 6 w in z, columns 6 h in x
             assert np.allclose(extent[[0, 2]], [6 * params["h"], 6 * params["w"]], atol=1e-3)
+
+
+def test_a_reset_leaves_no_temporary_folder_behind(monkeypatch, tmp_path):
+    """A pool worker ends without finalizers, so the mesh file's folder must be gone once the mesh is loaded."""
+    import tempfile
+
+    from tax3d.sim.bag import FIXED_BAG
+    from tax3d.sim.bag_env import HangBagEnv
+    from tax3d.sim.env import HangClothEnv
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    with HangClothEnv() as cloth, HangBagEnv() as bag:
+        cloth.reset(SIMPLE_CLOTH, 0.0, [0.0, 0.0, 0.0])
+        bag.reset(FIXED_BAG, 0.0, [0.0, 0.0, 0.0])
+        assert list(tmp_path.iterdir()) == []

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from tax3d.sim.bag import build_bag, load_bag, parse_bag_params
-from tax3d.sim.env import HangClothEnv, SceneState
+from tax3d.sim.env import HangClothEnv, SceneState, mesh_file
 from tax3d.sim.hook import goal_position, hook_cloud, load_hook
 from tax3d.sim.integrity import bag_figures, intact
 from tax3d.sim.success import bag_success
@@ -23,9 +21,8 @@ class HangBagEnv(HangClothEnv):
         c = self._new_world(rot_z, trans)
         self.mesh = mesh
         self.anchor_ids = load_hook(c, self.rot_z, self.trans)
-        obj = self._mesh_path("bag")
-        self.cloth_id = load_bag(c, self.mesh, obj)
-        os.unlink(obj)
+        with mesh_file("bag") as obj:
+            self.cloth_id = load_bag(c, self.mesh, obj)
         return self._finish_reset(self.cloth_vertices())
 
     def anchor_points(self) -> np.ndarray:

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import os
-import shutil
 import tempfile
 import weakref
 from dataclasses import dataclass
@@ -43,12 +44,23 @@ FORCE_CLIP = 5.0  # per-axis clip, not a norm (appendix A.3, footnote)
 EXPLODED_EXTENT = 60.0  # a vertex this far from the origin means the simulation blew up
 
 
-def _release(client: int, tmpdir: str) -> None:
+_LOADS = itertools.count(1)
+
+
+def _release(client: int) -> None:
     try:
         pybullet.disconnect(client)
     except pybullet.error:
         pass
-    shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def mesh_file(stem: str):
+    """A path for one mesh file PyBullet loads once, in a temporary folder removed as soon as the load is done (a
+    pool worker ends without running finalizers, so nothing may wait for exit). The name is new for every load in
+    the process: PyBullet caches meshes by file name."""
+    with tempfile.TemporaryDirectory(prefix=f"tax3d-{os.getpid()}-") as folder:
+        yield os.path.join(folder, f"{stem}_{next(_LOADS)}.obj")
 
 
 class SimulationExploded(RuntimeError):
@@ -63,21 +75,19 @@ class SceneState:
 
 
 class HangClothEnv:
-    """One PyBullet world per instance (DIRECT mode); the cloth mesh goes to this instance's temporary folder."""
+    """One PyBullet world per instance (DIRECT mode)."""
 
     scene = "cloth"
 
     def __init__(self, floor: bool = True):
         self.floor = floor
         self.client = pybullet.connect(pybullet.DIRECT)
-        self.tmpdir = tempfile.mkdtemp(prefix=f"tax3d-{os.getpid()}-")
         self.mesh: ClothMesh | None = None
         self.cloth_id = -1
         self.gripper_ids: list[int] = []
         self.anchor_ids: tuple[int, int] = (-1, -1)
         self.rot_z, self.trans = 0.0, np.zeros(3)
-        self.resets = 0
-        self._finalizer = weakref.finalize(self, _release, self.client, self.tmpdir)
+        self._finalizer = weakref.finalize(self, _release, self.client)
 
     def close(self) -> None:
         self._finalizer()
@@ -94,21 +104,20 @@ class HangClothEnv:
         c = self._new_world(rot_z, trans)
         self.mesh = build_cloth(cloth_params)
         self.anchor_ids = load_anchor(c, self.rot_z, self.trans)
-        obj = self._mesh_path("cloth")
-        with open(obj, "w") as f:
-            f.write(self.mesh.obj_text())
-        self.cloth_id = pybullet.loadSoftBody(
-            obj,
-            basePosition=CLOTH_POSITION,
-            baseOrientation=pybullet.getQuaternionFromEuler(CLOTH_EULER),
-            scale=CLOTH_SCALE,
-            physicsClientId=c,
-            **SOFT_BODY,
-        )
+        with mesh_file("cloth") as obj:
+            with open(obj, "w") as f:
+                f.write(self.mesh.obj_text())
+            self.cloth_id = pybullet.loadSoftBody(
+                obj,
+                basePosition=CLOTH_POSITION,
+                baseOrientation=pybullet.getQuaternionFromEuler(CLOTH_EULER),
+                scale=CLOTH_SCALE,
+                physicsClientId=c,
+                **SOFT_BODY,
+            )
         vertices = self.cloth_vertices()
         if len(vertices) != self.mesh.num_vertices:
             raise RuntimeError(f"soft body has {len(vertices)} vertices, mesh file {self.mesh.num_vertices}")
-        os.unlink(obj)
         return self._finish_reset(vertices)
 
     def _new_world(self, rot_z: float, trans) -> int:
@@ -121,12 +130,6 @@ class HangClothEnv:
         if self.floor:
             add_floor(c)
         return c
-
-    def _mesh_path(self, stem: str) -> str:
-        # A new file name per reset: PyBullet caches loaded meshes by file name, so reusing one would load the
-        # previous mesh again.
-        self.resets += 1
-        return os.path.join(self.tmpdir, f"{stem}_{self.resets}.obj")
 
     def _finish_reset(self, vertices: np.ndarray) -> SceneState:
         """After the soft body is loaded: SDF voxel size, look, and a gripper tied to each grip vertex."""
