@@ -4,6 +4,7 @@ command within seconds, in one line and a non-zero code, with no process of it l
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -121,3 +122,27 @@ def test_a_full_disk_is_one_sentence_and_keeps_the_last_checkpoint(tmp_path, sma
     assert state["step"] >= 5 and Tax3D.from_pretrained(out / "last") is not None
     leftovers = [p.name for p in out.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
     assert not leftovers, leftovers
+
+
+@pytest.fixture
+def full_disk(small_disk):
+    """The small filesystem filled to its last few kilobytes: the first demo or episode written fails."""
+    free = os.statvfs(small_disk)
+    (small_disk / "filler").write_bytes(bytes(free.f_bavail * free.f_frsize - 4096))
+    return small_disk
+
+
+@pytest.mark.parametrize("command", ["generate", "eval"])
+def test_a_full_disk_ends_generate_and_eval_in_one_sentence(full_disk, command):
+    out = full_disk / "out"
+    args = {"generate": ["--task", "hangproccloth-simple", "--split", "train", "--num", "2"],
+            "eval": ["--checkpoint", str(ROOT / "checkpoints" / "tax3d-cd-simple"), "--splits", "unseen",
+                     "--episodes", "2"]}[command]
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    process = subprocess.Popen([sys.executable, "-m", "tax3d.cli", command, *args, "--workers", "1", "--out", str(out)],
+                               env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    code, err = finish(process, 120)
+    assert code == 1, err
+    lines = [line for line in re.sub(r"episodes:[^\]]*\]", "", err).splitlines() if line.strip()]  # less the bar
+    assert len(lines) == 1 and lines[0].startswith(f"tax3d {command}: error: no space left on device writing {out}/"), err
+    assert not [p.name for p in out.rglob("*") if p.is_file()], "a half-written file was left"

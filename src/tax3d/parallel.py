@@ -68,11 +68,13 @@ def run_each(fn: Callable, jobs: Sequence, workers: int = 1, backend: str = "loc
 def stop(pool: ProcessPoolExecutor) -> None:
     """End a pool at once: drop the jobs not started and terminate the workers, waiting until they are gone."""
     processes = list((pool._processes or {}).values())  # the executor offers no public handle on its workers
-    pool.shutdown(wait=False, cancel_futures=True)
     for process in processes:
         process.terminate()
     for process in processes:
         process.join(timeout=5)
+    # Only now, and waiting: shutdown(wait=False) lets the pool's manager thread run on without its process table
+    # and fail with a TypeError of its own when a worker it would replace ends.
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _call(fn: Callable, job):
