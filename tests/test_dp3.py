@@ -225,7 +225,7 @@ def test_train_command_writes_a_checkpoint_and_resumes_exactly(tmp_path, demos, 
               "--data.task", "hangproccloth-simple"]
     assert main([*common, "--out", str(tmp_path / "whole"), "--train.steps", "4"]) == 0
     assert main([*common, "--out", str(tmp_path / "split"), "--train.steps", "2"]) == 0
-    assert main([*common, "--out", str(tmp_path / "split"), "--train.steps", "4"]) == 0  # resumes at step 2
+    assert main([*common, "--out", str(tmp_path / "split"), "--train.steps", "4", "--resume"]) == 0  # from step 2
     whole, split = read_log(tmp_path / "whole"), read_log(tmp_path / "split")
     assert [r["step"] for r in split] == [1, 2, 3, 4] and all(math.isfinite(r["loss"]) for r in whole)
     assert [r["loss"] for r in split] == pytest.approx([r["loss"] for r in whole], rel=1e-5)
@@ -236,6 +236,29 @@ def test_train_command_writes_a_checkpoint_and_resumes_exactly(tmp_path, demos, 
     resumed = DP3.from_pretrained(tmp_path / "split" / "last")
     for (name, a), b in zip(model.state_dict().items(), resumed.state_dict().values()):
         assert torch.allclose(a, b, atol=1e-6), name
+
+
+def test_one_run_one_folder(tmp_path, demos, monkeypatch, capsys):
+    """A second run into a folder whose lock is held is refused; a rerun with other options or demos is refused,
+    naming what differs, and trains nothing; --fresh starts afresh."""
+    from tax3d import runlock
+
+    monkeypatch.setitem(cfg.PRESETS, "cpu", tiny_config)
+    out = tmp_path / "run"
+    common = ["train-dp3", "--data.train", str(demos), "--preset", "cpu", "--device", "cpu", "--data.task",
+              "hangproccloth-simple", "--out", str(out), "--train.steps", "2"]
+    with runlock.hold(out):
+        assert "another run" in one_line_error(capsys, common) and not (out / "log.jsonl").exists()
+    assert main(common) == 0
+    capsys.readouterr()
+    before = (out / "log.jsonl").read_text()
+    err = one_line_error(capsys, [*common, "--train.lr", "0.5"])
+    assert "holds another run: --train.lr" in err and (out / "log.jsonl").read_text() == before
+    save_demo(demos / "demo_0.npz", synthetic_demo(5))
+    err = one_line_error(capsys, common)
+    assert "--data.train: these demonstrations differ" in err
+    assert main([*common, "--train.lr", "0.5", "--fresh"]) == 0
+    assert [r["step"] for r in read_log(out)] == [1, 2] and json.loads((out / "config.json").read_text())["train"]["lr"] == 0.5
 
 
 def test_a_minutes_plan_fixes_the_steps_from_the_measured_rate(tmp_path, demos, monkeypatch, capsys):

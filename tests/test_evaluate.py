@@ -347,3 +347,25 @@ def test_an_interrupted_evaluation_resumes_with_the_missing_episodes(generated, 
                 {k: v for k, v in results["summary"]["splits"]["unseen"].items() if k not in timed})
 
     assert scores(out) == scores(tmp_path / "whole")
+
+
+def test_warnings_of_the_episodes_are_said_once_by_the_command(monkeypatch):
+    """Episodes run in workers without the command's warning format: each comes back with its warnings, which the
+    command says once, with how many episodes raised them; the kept results do not carry them."""
+    import types
+    import warnings
+
+    from tax3d import evaluate
+    from tax3d.extent import ExtentWarning
+
+    def episode(job):
+        warnings.warn("the action cloud is far off", ExtentWarning)
+        return {"split": job.split, "name": job.name}
+
+    monkeypatch.setattr(evaluate, "episode", episode)
+    jobs = [types.SimpleNamespace(split="val", name=f"demo_{i}") for i in range(3)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        results = evaluate.run_jobs(jobs, 1, progress=False)
+    assert [str(w.message) for w in caught] == ["the action cloud is far off (in 3 of 3 episodes)"]
+    assert results == [{"split": "val", "name": f"demo_{i}"} for i in range(3)]

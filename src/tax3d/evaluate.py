@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import sys
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Annotated, Literal
@@ -152,7 +153,16 @@ def _predictor(checkpoint: str, device: str = "cpu"):
 
 
 def run_eval_job(job: EvalJob) -> dict:
-    """One evaluation episode in this process: predict, execute open or closed loop, release, judge."""
+    """One evaluation episode in this process: predict, execute open or closed loop, release, judge. The warnings
+    it raises come back in the result ("warnings"), for the command to say once in its own words: a worker process
+    has neither the command's warning format nor its sense of what was said already."""
+    with warnings.catch_warnings(record=True) as caught:  # under the filters in force: what would be shown
+        result = episode(job)
+    result["warnings"] = list(dict.fromkeys(str(w.message) for w in caught))
+    return result
+
+
+def episode(job: EvalJob) -> dict:
     from tax3d.metrics import grip_error, rmse
     from tax3d.policy import GoalPolicy
     from tax3d.sim.scenes import process_env
@@ -328,12 +338,18 @@ def run_jobs(jobs: list[EvalJob], workers: int, progress: bool = True, fn=run_ev
               f"scoring the other {len(todo)}", file=sys.stderr)
     bar = tqdm(total=len(jobs), initial=len(results), desc="episodes", unit="ep", disable=not progress,
                file=sys.stderr)
+    said: dict[str, int] = {}
     for i, result, error in run_each(fn, todo, workers, backend, address):
-        if error is None and kept is not None:
-            kept.keep(todo[i], result)
+        if error is None:
+            for message in result.pop("warnings", []):
+                said[message] = said.get(message, 0) + 1
+            if kept is not None:
+                kept.keep(todo[i], result)
         results.append(result if error is None else _failed(todo[i], f"{type(error).__name__}: {error}"))
         bar.update()
     bar.close()
+    for message, count in said.items():
+        warnings.warn(f"{message} (in {count} of {len(todo)} episodes)", stacklevel=2)
     order = {(j.split, j.name): i for i, j in enumerate(jobs)}
     return sorted(results, key=lambda r: order[(r["split"], r["name"])])
 

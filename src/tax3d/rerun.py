@@ -17,7 +17,7 @@ DIGEST_NAME = "demos.json"
 HOW = {("train", "num_workers"), ("train", "threads"), ("train", "device"), ("train", "compile"),
        ("train", "keep_every"), ("train", "time_limit")}
 """fields that change how or how long a run computes, not the steps it takes: a resumed run may set them otherwise"""
-PLANNED = {("train", "steps"), ("train", "val_every")}
+PLANNED = {("train", "steps"), ("train", "val_every"), ("train", "save_every")}
 """fields a --train.minutes plan fixes at the run's start (config.json records them)"""
 DERIVED = {("data", "task")}
 """fields made from the demonstrations (their digest is compared instead)"""

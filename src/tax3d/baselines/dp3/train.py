@@ -6,7 +6,8 @@ The options are the dotted config fields of `tax3d train` (`--model.*`, `--diffu
 
 OUT gets config.json, log.jsonl (one line per step) and last/: a checkpoint directory (config.json and
 model.safetensors, the EMA weights, for `tax3d eval --checkpoint OUT/last`) plus training_state.pt to resume from.
-A run whose OUT already holds last/ continues from it. Each step's batch, rotations, diffusion steps and noise come
+A run whose OUT already holds last/ continues from it, if it is the same run (tax3d.rerun: the same options and
+demos; --fresh starts afresh); the run holds OUT's lock (tax3d.runlock) while it writes there. Each step's batch, rotations, diffusion steps and noise come
 from a generator seeded by (seed, step), so a resumed run sees what an uninterrupted one would. A `--train.minutes`
 run is planned as `tax3d train` plans one (tax3d.plan), with each save of last/ in the place of a validation: the
 first steps fix train.steps, and every save times it again.
@@ -26,6 +27,7 @@ from typing import Annotated, Literal, Optional
 import numpy as np
 import torch
 
+from tax3d import rerun, runlock
 from tax3d.atomic import write_text
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
@@ -54,6 +56,12 @@ class Args:
     paper where CUDA is available, else cpu (as `tax3d train`)"""
     device: str = "auto"
     """auto (cuda when available), cpu or cuda"""
+    resume: bool = False
+    """require a checkpoint in OUT/last to continue from (without it, one is used when present); with it,
+    --train.steps and --train.save-every may move the run's end"""
+    fresh: bool = False
+    """start afresh in OUT: its checkpoints and log are replaced (without it, a rerun into a run's folder resumes
+    that run, and only with that run's configuration and demonstrations)"""
     model: cfg.ModelOverrides = field(default_factory=cfg.ModelOverrides)
     diffusion: cfg.DiffusionOverrides = field(default_factory=cfg.DiffusionOverrides)
     data: cfg.DataOverrides = field(default_factory=cfg.DataOverrides)
@@ -65,11 +73,16 @@ def ema_decay(step: int) -> float:
     return 0.0 if step <= 0 else min(EMA_MAX, 1.0 - (1.0 + step) ** -EMA_POWER)
 
 
-def resolve_config(args: Args, last: Path | None) -> cfg.DP3Config:
-    """The preset with the given options applied; when resuming, the run's saved config (its preset wins)."""
-    config = cfg.preset(default_preset(args.preset)) if last is None else cfg.load(last / "config.json")
+def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.DP3Config:
+    """The preset with the given options applied; resuming, the run's saved config (its planned steps kept), which
+    the command's must equal (tax3d.rerun)."""
     overrides = dict(model=args.model, diffusion=args.diffusion, data=args.data, train=args.train)
-    return cfg.validate(apply_overrides(config, **overrides), "options")
+    command = cfg.validate(apply_overrides(cfg.preset(default_preset(args.preset)), **overrides), "options")
+    if last is None:
+        return command
+    saved = cfg.load(last / "config.json")
+    rerun.check_same_run(out, json.loads((last / "config.json").read_text()), saved, command, extend=args.resume)
+    return cfg.validate(apply_overrides(saved, **overrides), "options")
 
 
 def default_preset(name: str | None) -> str:
@@ -92,11 +105,20 @@ def step_batch(dataset: TrajectoryDataset, config: cfg.DP3Config, step: int, dev
 
 
 def run(args: Args) -> int:
+    with runlock.hold(Path(args.out)):
+        return run_locked(args)
+
+
+def run_locked(args: Args) -> int:
     from tqdm.auto import tqdm
 
     out = Path(args.out)
-    last = find_last(out)
-    config = resolve_config(args, last)
+    if args.resume and args.fresh:
+        raise UsageError("--fresh: not with --resume; expected one or the other")
+    last = None if args.fresh else find_last(out)
+    if args.resume and last is None:
+        raise UsageError(f"--resume: {out} holds no checkpoint to continue from (expected {out / 'last' / STATE_NAME})")
+    config = resolve_config(args, out, last)
     c = config.train
     if c.threads > 0:
         torch.set_num_threads(c.threads)
@@ -104,7 +126,11 @@ def run(args: Args) -> int:
     if not config.data.train:
         raise UsageError("--data.train: no demonstration folder given; expected folders of demos written with "
                          "`tax3d generate --trajectories`")
-    config.data.task = data_task(demo_files(config.data.train), config.data.task)
+    train_files = demo_files(config.data.train)
+    config.data.task = data_task(train_files, config.data.task)
+    digests = rerun.demo_digests(train_files, [])
+    if last is not None:
+        rerun.check_same_demos(out, digests)
     m = config.model
     dataset = TrajectoryDataset(config.data.train, m.horizon, m.n_obs_steps, config.data.num_action_points,
                                 config.data.num_anchor_points)
@@ -127,7 +153,10 @@ def run(args: Args) -> int:
         plan.load_state_dict(state.get("plan", {}))
         print(f"resuming {out} at step {step}", file=sys.stderr)
         truncate_log(out / "log.jsonl", step)
-    out.mkdir(parents=True, exist_ok=True)
+    if args.fresh:
+        rerun.clear_run(out)
+    if last is None or not (out / rerun.DIGEST_NAME).is_file():
+        rerun.keep_digests(out, digests)
     write_text(out / "config.json", cfg.dumps(config))
 
     log = open(out / "log.jsonl", "a")
