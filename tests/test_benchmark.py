@@ -22,6 +22,22 @@ def data(generated, tmp_path):
     return root
 
 
+@pytest.fixture
+def no_simulator(monkeypatch):
+    """Episodes scored without the simulator, for the tests of the table's bookkeeping (which rows train, score and
+    count): each episode a success whose goal is the demo's own. The simulated episodes of `tax3d eval` have tests
+    of their own (tests/test_evaluate.py), and the README's block runs this command whole."""
+    from tax3d import evaluate
+
+    def episode(job):
+        result = {**evaluate._failed(job, ""), "success": True}
+        del result["error"]
+        return result
+
+    monkeypatch.setattr(evaluate, "episode", episode)
+
+
+@pytest.mark.usefixtures("no_simulator")
 def test_rows_are_scored_once_and_a_stop_between_rows_resumes(data, tmp_path, capsys, monkeypatch, own_ledger):
     args = Args(task="hangproccloth-simple", variants="cd,cp", out=tmp_path / "bench", steps=2, episodes=1,
                 num_train=1, num_val=1, workers=1, data=data, keep=tmp_path / "keep")
@@ -67,6 +83,7 @@ def test_rows_are_scored_once_and_a_stop_between_rows_resumes(data, tmp_path, ca
     assert lines[0]["successes"] == ledger.successes(row["splits"]) and lines[0]["num_train"] == 1
 
 
+@pytest.mark.usefixtures("no_simulator")
 def test_a_row_deleted_and_kept_again_is_scored_twice_in_the_ledger(data, tmp_path, own_ledger):
     args = Args(task="hangproccloth-simple", variants="cd", out=tmp_path / "bench", steps=2, episodes=1,
                 num_train=1, num_val=1, workers=1, data=data, keep=tmp_path / "keep")
@@ -81,6 +98,7 @@ def test_a_row_deleted_and_kept_again_is_scored_twice_in_the_ledger(data, tmp_pa
     assert [ledger.is_kept_row(x, r) for x, r in zip(lines, (first, second))] == [True, True]
 
 
+@pytest.mark.usefixtures("no_simulator")
 def test_a_row_trained_again_after_a_fix_counts_its_trainings_and_scorings(data, tmp_path, capsys, monkeypatch):
     """--retrain sets the scored weights aside and trains from the start; stopped before its scoring, a plain rerun
     is refused and the --retrain rerun scores the new weights (not a third training), and the summary counts two
