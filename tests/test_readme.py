@@ -21,7 +21,8 @@ TINY = {
              "--data.num-action-points 32 --data.num-anchor-points 32 --train.num-workers 0",
     "predict": "--steps 2",
     "eval": "--episodes 1 --workers 1 --steps 2 --no-report",
-    "benchmark": "--num-train 1 --num-val 1 --episodes 1 --steps 2 --workers 1",
+    # the demos the block made before it (unseen and ood from demo_0): the command's own generation has its tests
+    "benchmark": "--num-train 1 --num-val 1 --episodes 1 --steps 2 --workers 1 --data data/simple --first-index 0",
     "train-dp3": "--train.steps 2 --train.batch-size 2",
 }
 
