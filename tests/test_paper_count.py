@@ -76,7 +76,7 @@ def test_the_page_draws_each_study_against_samples_with_the_papers_budget(tmp_pa
     (root / "pc" / "u.json").write_text(json.dumps(kept.stamp("paper-count", study)))
     (root / "pc" / "evals").mkdir()
     (root / "pc" / "evals" / "scene-200.json").write_text(json.dumps(kept.stamp("eval", {"summary": {
-        "splits": {"val": {"success_rate": 0.825, "episodes": 40}}}})))
+        "splits": {"val": {"success_rate": 0.825, "episodes": 40, "success_ci95": [0.68, 0.91]}}}})))
     (root / "pages" / "pc.toml").write_text('''kind = "paper-count"
 title = "T"
 page = "pc.md"
@@ -92,7 +92,7 @@ evals = "pc/evals"
     page = (root / "pc.md").read_text()
     assert "cpu is lowest at 0.600, scene ends at 0.500." in page
     assert "| cpu | `(none)` | 4,800 (0.3) | 0.600 (3,200) | 0.700 |" in page
-    assert "0.825 of 40 (200)" in page and "not scored yet" in page
+    assert "0.825 (0.68-0.91) of 40 at 200" in page and "not scored yet" in page
     source = plots.drawn_from((root / "pc" / "u.png").read_bytes())
     assert source["marks"] == [["the paper's budget", 8_000_000.0]]
     assert [r[0] for r in source["runs"]] == ["cpu", "scene"] and source["runs"][1][2] == [0.95, 0.7, 0.5]

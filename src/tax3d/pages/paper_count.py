@@ -17,6 +17,7 @@ from tax3d import config as cfg
 from tax3d import kept
 from tax3d.commands import shown
 from tax3d.errors import UsageError
+from tax3d.metrics import split_rate
 from tax3d.pages import plots
 from tax3d.pages.page import Page, fold
 
@@ -68,15 +69,15 @@ class PaperCountPage(Page):
 
     def table(self, data: dict) -> list[str]:
         lines = ["| arm | options on `--preset " + data["preset"] + "` | samples seen (wall hours) | lowest val "
-                 "RMSE (at samples) | last val RMSE | last training loss | policy on `val` (at step) |",
+                 "RMSE (at samples) | last val RMSE | last training loss | policy success on `val`, 95% interval (at step) |",
                  "| --- | --- | --- | --- | --- | --- | --- |"]
         for name, arm in data["arms"].items():
             best, end = arm["best"], arm["end"]
-            policy = "; ".join(f"{e['success_rate']:.3f} of {e['episodes']} ({step:,})"
-                               for step, e in sorted(arm["evals"].items())) or "not scored yet"
+            policy = "; ".join(f"{split_rate(e)} ({e['success_ci95'][0]:.2f}-{e['success_ci95'][1]:.2f}) of "
+                               f"{e['episodes']} at {step:,}" for step, e in sorted(arm["evals"].items()))
             lines.append(f"| {name} | `{arm['options'] or '(none)'}` | {end['samples']:,} ({end['hours']:.1f}) | "
                          f"{best[METRIC]:.3f} ({best['samples']:,}) | {end[METRIC]:.3f} | {end['train_mse']:.4f} | "
-                         f"{policy} |")
+                         f"{policy or 'not scored yet'} |")
         return lines
 
     def plot(self, study: dict, data: dict, row: dict | None) -> bytes:
