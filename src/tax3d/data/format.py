@@ -23,9 +23,7 @@ from tax3d.atomic import atomic_write
 from tax3d.errors import UsageError
 
 CORE_KEYS = ("action_pc", "anchor_pc", "flow")
-REQUIRED_KEYS = CORE_KEYS  # all that training and prediction need
 SIM_KEYS = ("rot", "trans", "deform_params")  # what evaluation in simulation replays: the anchor pose, the cloth
-ARRAY_KEYS = ("action_pc", "action_seg", "anchor_pc", "anchor_seg", "flow", "speed_factor", "rot", "trans")
 OBJECT_KEYS = ("deform_params", "anchors")
 OPTIONAL_KEYS = ("action_seg", "anchor_seg", "speed_factor", "rot", "trans", "deform_params", "anchors", "task")
 CUSTOM_TASK = "custom"  # the task recorded for demonstrations that name none

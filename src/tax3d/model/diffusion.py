@@ -93,21 +93,16 @@ def point_mean(x: torch.Tensor, weight: torch.Tensor | None) -> torch.Tensor:
 class GaussianDiffusion:
     """DDPM forward process, learned-range reverse process, hybrid loss and samplers for a given betas array."""
 
-    def __init__(self, betas: Sequence[float] | np.ndarray, learn_sigma: bool = True, fixed_variance: str = "large",
-                 loss: str = "epsilon"):
+    def __init__(self, betas: Sequence[float] | np.ndarray, learn_sigma: bool = True, loss: str = "epsilon"):
         betas = np.asarray(betas, dtype=np.float64)
         if loss not in LOSSES:
             raise ValueError(f"loss must be one of {', '.join(LOSSES)}, got {loss!r}")
         self.loss = loss
         if betas.ndim != 1 or not ((betas > 0) & (betas <= 1)).all():
             raise ValueError("betas must be a 1-d array in (0, 1]")
-        if fixed_variance not in ("large", "small"):
-            raise ValueError(f"fixed_variance must be 'large' or 'small', got {fixed_variance!r}")
         self.betas = betas
         self.num_timesteps = len(betas)
         self.learn_sigma = learn_sigma
-        # without learn_sigma: 'large' is beta_t (DiT's default, FIXED_LARGE), 'small' the posterior variance
-        self.fixed_variance = fixed_variance
         # model timestep t -> index of the schedule the model was trained on (identity unless respaced)
         self.timestep_map = np.arange(self.num_timesteps)
 
@@ -158,8 +153,7 @@ class GaussianDiffusion:
         """A diffusion over a subset of this one's timesteps (an int n: space_timesteps(T, n))."""
         if isinstance(use_timesteps, int):
             use_timesteps = space_timesteps(self.num_timesteps, use_timesteps)
-        spaced = SpacedDiffusion(self.betas, use_timesteps, learn_sigma=self.learn_sigma,
-                                 fixed_variance=self.fixed_variance, loss=self.loss)
+        spaced = SpacedDiffusion(self.betas, use_timesteps, learn_sigma=self.learn_sigma, loss=self.loss)
         spaced.timestep_map = self.timestep_map[spaced.timestep_map]
         return spaced
 
@@ -211,14 +205,10 @@ class GaussianDiffusion:
             frac = (v + 1) / 2
             log_variance = frac * max_log + (1 - frac) * min_log
             variance = torch.exp(log_variance)
-        else:
+        else:  # a fixed variance: beta_t (DiT's FIXED_LARGE)
             eps = model_output
-            if self.fixed_variance == "large":
-                variance = self._extract(self.large_variance, t, x_t).expand_as(x_t)
-                log_variance = self._extract(np.log(self.large_variance), t, x_t).expand_as(x_t)
-            else:
-                variance = self._extract(self.posterior_variance, t, x_t).expand_as(x_t)
-                log_variance = self._extract(self.posterior_log_variance_clipped, t, x_t).expand_as(x_t)
+            variance = self._extract(self.large_variance, t, x_t).expand_as(x_t)
+            log_variance = self._extract(np.log(self.large_variance), t, x_t).expand_as(x_t)
         pred_xstart = self.predict_xstart_from_eps(x_t, t, eps)
         mean, _, _ = self.q_posterior_mean_variance(pred_xstart, x_t, t)
         return {"mean": mean, "variance": variance, "log_variance": log_variance, "pred_xstart": pred_xstart,

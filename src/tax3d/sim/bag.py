@@ -22,7 +22,6 @@ BAG_SCALE = 1.0
 # holds the handle so high and so far along world -y (the hook turns by up to 60 degrees, so a fixed -y does not
 # point along its arm) that the before-release check often fails; half the lift and no y shift hangs every bag
 # with room to spare (docs/results/hangbag.md measures both).
-REFERENCE_POLICY_OFFSET = (0.0, -0.5, 1.0)
 POLICY_OFFSET = (0.0, 0.0, 0.5)
 # The cloth's soft-body parameters (docs/reference.md, "HangProcCloth scene"); the bag behaves with them unchanged.
 BAG_SOFT_BODY = dict(SOFT_BODY)

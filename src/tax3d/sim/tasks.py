@@ -9,7 +9,7 @@ import numpy as np
 
 from tax3d.errors import UsageError
 from tax3d.sim.bag import FIXED_BAG, POLICY_OFFSET
-from tax3d.sim.cloth import DOUBLE_HOLE_CLOTH, SIMPLE_CLOTH, sample_cloth_params
+from tax3d.sim.cloth import SIMPLE_CLOTH, sample_cloth_params
 
 
 @dataclass(frozen=True)
@@ -47,12 +47,9 @@ TASKS = {
 # poses and cloths from the training distribution under a seed of its own, so no val episode is a test episode.
 SPLITS = {s.name: s for s in (SplitSpec("train", 0, False), SplitSpec("val", 30, False), SplitSpec("unseen", 10, False),
                               SplitSpec("ood", 20, True))}
-TEST_SPLITS = ("unseen", "ood")
 # The paper's table is scored on unseen and ood demos from this index on (demo_100 ...): episodes that no choice
 # made before the table (training validation, earlier pages) has touched.
 TEST_FIRST_INDEX = 100
-# The fixed double-hole cloth is exposed for users and tests; the multimodal task samples random two-hole cloths.
-FIXED_CLOTHS = {"simple": SIMPLE_CLOTH, "double": DOUBLE_HOLE_CLOTH}
 
 
 def get_task(name: str) -> TaskSpec:
