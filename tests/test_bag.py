@@ -1,4 +1,5 @@
 from collections import Counter
+from dataclasses import asdict
 
 import numpy as np
 import pybullet
@@ -7,13 +8,26 @@ import shapely
 
 from tax3d.errors import UsageError
 from tax3d.sim.anchor import add_floor, pose_points
-from tax3d.sim.bag import BAG_POSITION, BagParams, build_bag, initial_vertices, load_bag, sample_bag_params
+from tax3d.sim.bag import BAG_EULER, BAG_POSITION, BAG_SCALE, BagParams, build_bag, load_bag
 from tax3d.sim.hook import GOAL_LOCAL, canonical_hook_cloud, goal_position, hook_cloud, load_hook
 
 
 @pytest.fixture(scope="module")
 def bag():
     return build_bag()
+
+
+def initial_vertices(mesh) -> np.ndarray:
+    """The mesh's vertices in the world at the initial pose (BAG_POSITION, BAG_EULER, BAG_SCALE)."""
+    rot = np.array(pybullet.getMatrixFromQuaternion(pybullet.getQuaternionFromEuler(BAG_EULER))).reshape(3, 3)
+    return BAG_SCALE * mesh.local @ rot.T + np.asarray(BAG_POSITION)
+
+
+def random_bag(rng: np.random.Generator) -> BagParams:
+    """A bag around the default: every size scaled by its own U(0.85, 1.15)."""
+    base = BagParams()
+    keys = ("width", "depth", "height", "handle_gap", "handle_rise")
+    return BagParams(**{**asdict(base), **{k: float(getattr(base, k) * rng.uniform(0.85, 1.15)) for k in keys}})
 
 
 def _edges(faces):
@@ -166,7 +180,7 @@ def test_obj_round_trip(bag, tmp_path):
 def test_random_bags_and_bad_params():
     rng = np.random.default_rng(0)
     for _ in range(5):
-        mesh = build_bag(sample_bag_params(rng))
+        mesh = build_bag(random_bag(rng))
         assert mesh.num_vertices - len(_edges(mesh.faces)) + len(mesh.faces) == -1
         assert len(_boundary_cycles(mesh.faces)) == 3
         assert 3.0 <= np.ptp(mesh.local[:, 0]) <= 4.1

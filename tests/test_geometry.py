@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from tax3d.geometry import (apply_pose, centre, farthest_point_sample, fps_loop_numpy, fps_loop_torch, rotate_z,
+from tax3d.geometry import (centre, farthest_point_sample, fps_loop_numpy, fps_loop_torch, rotate_z,
                             rotation_z)
 
 
@@ -106,11 +106,3 @@ def test_centre():
     torch.testing.assert_close(centred + mean[:, None], points)
     centred_np, mean_np = centre(points[0].numpy())
     np.testing.assert_allclose(mean_np, mean[0].numpy(), atol=1e-6)
-
-
-def test_apply_pose_rotates_about_origin_then_translates():
-    p = np.array([[1.0, 0.0, 0.0], [0.0, 2.0, 1.0]])
-    out = apply_pose(p, math.pi / 2, np.array([1.0, 2.0, 3.0]))
-    np.testing.assert_allclose(out, [[1.0, 3.0, 3.0], [-1.0, 2.0, 4.0]], atol=1e-12)
-    out_t = apply_pose(torch.from_numpy(p), math.pi / 2, torch.tensor([1.0, 2.0, 3.0]))
-    np.testing.assert_allclose(out_t.numpy(), out, atol=1e-12)

@@ -7,11 +7,12 @@ import pytest
 
 from tax3d.data.format import load_demo, save_demo, validate_demo
 from tax3d.errors import UsageError
-from tax3d.sim.bag import FIXED_BAG, build_bag, initial_vertices, parse_bag_params
+from tax3d.sim.bag import FIXED_BAG, build_bag, parse_bag_params
 from tax3d.sim.hook import GOAL_LOCAL, cylinders, goal_position, penetration
 from tax3d.sim.integrity import MAX_PENETRATION, bag_figures, intact, mesh_edges
 from tax3d.sim.success import BAG_CENTROID_THRESHOLD, bag_success
 from tax3d.sim.tasks import TASKS, episode_params, get_split, get_task
+from tests.test_bag import initial_vertices
 
 
 def ring(centre, n=12, radius=0.7):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tax3d.report import _pick_figures, denoising_figure, denoising_gif, write_report
+from tax3d.report import _pick_figures, denoising_figure, write_report
 
 N, M, S, K = 50, 80, 3, 5
 SPLITS = ("train", "unseen", "ood")
@@ -157,14 +157,6 @@ def test_denoising_figure_has_one_frame_per_step():
     fig = denoising_figure(episode["denoising"], episode["anchor_pc"])
     assert len(fig.frames) == K
     assert fig.layout.sliders and len(fig.layout.sliders[0].steps) == K
-
-
-def test_denoising_gif(tmp_path):
-    episode = _episodes()[0]
-    path = denoising_gif(tmp_path / "denoising.gif", episode["denoising"], episode["anchor_pc"])
-    with Image.open(path) as image:
-        assert image.format == "GIF" and image.n_frames == K
-    assert [p.name for p in tmp_path.iterdir()] == ["denoising.gif"]
 
 
 def test_empty_episodes_still_write_the_table(tmp_path):

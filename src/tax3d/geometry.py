@@ -122,11 +122,6 @@ def centre(points):
     return points - mean[..., None, :], mean
 
 
-def apply_pose(points, rot_z, trans):
-    """p -> Rz(rot_z) p + trans: the anchor's pose (docs/reference.md, HangProcCloth scene)."""
-    return rotate_z(points, rot_z) + _like(trans, points)[..., None, :]
-
-
 def random_angle(generator: torch.Generator | None = None) -> float:
     """An angle drawn from U(0, 2 pi)."""
     return float(torch.rand((), generator=generator, dtype=torch.float64)) * 2.0 * math.pi

@@ -239,36 +239,6 @@ def _rgb01(rgb) -> tuple[float, float, float]:
     return tuple(c / 255 for c in rgb)
 
 
-def denoising_gif(path: Path, frames: np.ndarray, anchor: np.ndarray, max_frames: int = 30,
-                  duration_ms: int = 120) -> Path:
-    """Animated GIF of the predicted goal from noise to the final cloud, with the anchor; written atomically."""
-    from PIL import Image
-
-    path = Path(path)
-    frames = np.asarray(frames, dtype=np.float32)
-    keep = _frame_indices(len(frames), max_frames)
-    anchor = _finite(anchor)
-    clouds = [_finite(frames[k]) for k in keep]
-    images = []
-    for step, cloud in zip(keep, clouds):
-        fig = _new_figure(360, 300)
-        ax = fig.add_subplot(projection="3d")
-        _scatter(ax, anchor, ANCHOR_COLOR, 1.0)
-        _scatter(ax, cloud, _rgb01(GOAL_COLORS[1]), 2.0)
-        _cube_limits(ax, [anchor, *clouds])
-        _style_axes(ax, f"denoising step {step + 1}/{len(frames)}")
-        fig.subplots_adjust(left=0, right=1, bottom=0, top=0.92)
-        fig.canvas.draw()
-        rgba = np.asarray(fig.canvas.buffer_rgba())
-        images.append(Image.fromarray(rgba[..., :3]).quantize(colors=64))
-    if not images:
-        images = [Image.new("P", (360, 300), 255)]
-    durations = [duration_ms] * (len(images) - 1) + [duration_ms * 8]  # hold the final goal
-    buffer = io.BytesIO()
-    images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0)
-    return write_bytes(path, buffer.getvalue())
-
-
 def _frame_indices(count: int, max_frames: int) -> list[int]:
     if count <= max_frames:
         return list(range(count))

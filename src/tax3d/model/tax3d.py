@@ -317,8 +317,3 @@ def _positive(value, name: str) -> int:
     if value < 1:
         raise ValueError(f"{name} is {value}; expected a positive integer")
     return value
-
-
-def read_config(directory) -> dict:
-    """The raw config.json of a checkpoint (for tools that only need to look)."""
-    return json.loads((Path(directory) / CONFIG_NAME).read_text())

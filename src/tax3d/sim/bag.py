@@ -62,13 +62,6 @@ def parse_bag_params(params: dict, where: str = "bag") -> BagParams:
     return BagParams(**values)
 
 
-def sample_bag_params(rng: np.random.Generator) -> BagParams:
-    """A random bag around the default: every size scaled by its own U(0.85, 1.15)."""
-    base = BagParams()
-    keys = ("width", "depth", "height", "handle_gap", "handle_rise")
-    return BagParams(**{**asdict(base), **{k: float(getattr(base, k) * rng.uniform(0.85, 1.15)) for k in keys}})
-
-
 @dataclass
 class BagMesh:
     params: BagParams
@@ -188,12 +181,6 @@ def _strap_points(params: BagParams, a_in: float, band: float, m: int, k: int, z
     x = np.cos(theta)[:, None] * a[None]
     y = params.height + np.sin(theta)[:, None] * b[None]
     return np.stack([x, y, np.full_like(x, z)], axis=-1)
-
-
-def initial_vertices(mesh: BagMesh) -> np.ndarray:
-    """The mesh's vertices in the world at the initial pose (BAG_POSITION, BAG_EULER, BAG_SCALE)."""
-    rot = np.array(pybullet.getMatrixFromQuaternion(pybullet.getQuaternionFromEuler(BAG_EULER))).reshape(3, 3)
-    return BAG_SCALE * mesh.local @ rot.T + np.asarray(BAG_POSITION)
 
 
 def load_bag(client: int, mesh: BagMesh, obj_path: str | os.PathLike, soft_body: dict | None = None) -> int:
