@@ -211,11 +211,14 @@ def test_data_only_makes_the_rows_demonstrations_and_nothing_else(tmp_path, monk
     assert not (tmp_path / "b" / "dp3").exists() and not (tmp_path / "b" / "results.md").exists()
 
 
-def test_a_row_records_the_benchmark_command(monkeypatch):
-    from tax3d import benchmark
+def test_a_row_records_the_benchmark_command():
+    from tax3d import benchmark, provenance
 
-    monkeypatch.setattr("sys.argv", ["tax3d", "benchmark", "--task", "hangbag", "--keep", "docs/a b"])
-    assert benchmark.command() == "tax3d benchmark --task hangbag --keep 'docs/a b'"
+    provenance.running(["benchmark", "--task", "hangbag", "--keep", "docs/a b"])
+    try:
+        assert benchmark.command() == "tax3d benchmark --task hangbag --keep 'docs/a b'"
+    finally:
+        provenance.running(None)
 
 
 def test_the_floor_and_ceiling_rows_score_fixed_goals_without_training(tmp_path, monkeypatch):

@@ -31,3 +31,15 @@ def test_processor_reads_the_model_name_and_avx512():
 def test_today_is_iso():
     assert re.fullmatch(r"\d{4}-\d{2}-\d{2}", provenance.today())
     assert datetime.date.fromisoformat(provenance.today()) == datetime.date.today()
+
+
+def test_the_command_is_the_one_being_run_and_no_other(tmp_path, capsys):
+    """A result made under `tax3d CMD` records that command line as typed; one made from Python after it names the
+    module it was made by, not the command that ran before."""
+    from tax3d import provenance
+    from tax3d.cli import main
+
+    assert provenance.command("tax3d.predict") == "tax3d.predict, called from Python"
+    assert main(["predict", "--checkpoint", str(tmp_path / "none"), "--demos", str(tmp_path)]) == 2  # a usage error
+    made = provenance.made("tax3d.evaluate")  # after it, from Python: not the command that ran before
+    assert made["command"] == "tax3d.evaluate, called from Python" and "cores" in made["machine"] and made["date"]

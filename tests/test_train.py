@@ -112,7 +112,8 @@ def test_outputs_and_config(tmp_path, demos):
     summary = kept.load(out / "summary.json", ("train-log",))
     assert [p["step"] for p in summary["points"]] == [3, 6] and summary["records"][-1]["step"] == 6
     assert summary["variant"] == "cp_w" and summary["val"] == [str(demos)] and summary["last_step"] == 6
-    assert summary["machine"] and summary["date"] and "command" not in summary  # called in-process, not `tax3d train`
+    assert summary["machine"] and summary["date"] and summary["command"].startswith("tax3d train ")
+    assert "--model.variant CP-W" in summary["command"]  # as typed
     assert float(torch.tensor([1e-39]) * 1.0) == 0.0  # training flushes subnormal floats to zero
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary folders left
 

@@ -13,13 +13,11 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import json
-import shlex
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
-from tax3d import ledger
+from tax3d import ledger, provenance
 from tax3d.atomic import write_json, write_text
 from tax3d.config import PresetName
 from tax3d.errors import UsageError
@@ -298,8 +296,7 @@ def _set_aside(args: Args, variant: str) -> None:
 
 def command() -> str:
     """The command line of this benchmark, as a page shows it."""
-    return ("tax3d benchmark " + shlex.join(sys.argv[2:]) if sys.argv[1:2] == ["benchmark"]
-            else "tax3d.benchmark")
+    return provenance.command("tax3d.benchmark")
 
 
 def _rows(args: Args) -> list[str]:

@@ -7,7 +7,7 @@ import os
 import sys
 import warnings
 
-from tax3d import options
+from tax3d import options, provenance
 from tax3d.atomic import WriteError
 from tax3d.errors import UsageError
 
@@ -46,6 +46,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"tax3d: error: unknown command {name!r}; expected one of {', '.join(COMMANDS)}", file=sys.stderr)
         return 2
     module = importlib.import_module(COMMANDS[name][0])
+    provenance.running(argv)
     warnings.formatwarning = lambda message, category, *_: f"tax3d {name}: warning: {message}\n"
     try:
         parsed = tyro.cli(options.described(module.Args), args=rest, prog=f"tax3d {name}",
@@ -67,6 +68,8 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"tax3d {name}: failed: {failure(err)} ({TRACEBACK}=1 shows where)", file=sys.stderr)
         return 1
+    finally:
+        provenance.running(None)
 
 
 TRACEBACK = "TAX3D_TRACEBACK"

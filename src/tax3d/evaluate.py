@@ -449,9 +449,7 @@ def evaluate(args: Args, progress: bool = True, record: bool = True) -> dict:
         "checkpoint": None if args.checkpoint is None else str(args.checkpoint), "task": args.task,
         "weights_sha256": sha,
         "variant": variant, "goal": args.goal,
-        "command": "tax3d eval " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["eval"] else "tax3d.evaluate",
-        "machine": provenance.machine(),
-        "date": provenance.today(), "args": {k: str(v) for k, v in asdict(args).items()},
+        **provenance.made("tax3d.evaluate"), "args": {k: str(v) for k, v in asdict(args).items()},
         "splits": summarise(results, splits),
         "policy_offset": list(get_task(args.task).policy_offset if args.policy_offset is None else args.policy_offset),
     }

@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import sys
 import time
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Literal, Optional
 
@@ -104,8 +104,7 @@ def run(args: Args) -> int:
         write_npz(Path(args.out), goals, files, errors)
         print(f"predictions: {args.out}", file=sys.stderr)
     if args.summary:
-        record = kept.stamp("predict", {"command": command_line(args), "date": provenance.today(),
-                                        "machine": provenance.machine(), "checkpoint": str(args.checkpoint),
+        record = kept.stamp("predict", {**provenance.made("tax3d.predict"), "checkpoint": str(args.checkpoint),
                                         **summary})
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
         write_text(args.summary, json.dumps(record, indent=1) + "\n")
@@ -117,18 +116,6 @@ def run(args: Args) -> int:
 def medoid_rmse(goals: list[np.ndarray], errors: np.ndarray) -> float:
     """Mean over demos of the RMSE of each demo's medoid sample (the one with the least summed RMSE to the others)."""
     return float(np.mean([e[medoid(g)] for g, e in zip(goals, errors)]))
-
-
-def command_line(args: Args) -> str:
-    """The `tax3d predict` command that reproduces args: checkpoint, demos and every option off its default."""
-    words = ["tax3d predict"]
-    for field in fields(Args):
-        value = getattr(args, field.name)
-        if field.default is not MISSING and value == field.default:
-            continue
-        values = value if isinstance(value, tuple) else (value,)
-        words.append(" ".join([f"--{field.name.replace('_', '-')}", *map(str, values)]))
-    return " ".join(words)
 
 
 def write_npz(path: Path, goals: list[np.ndarray], files: list[Path], errors: np.ndarray) -> None:

@@ -1,11 +1,33 @@
-"""Where and when a result was made: the machine line and the date kept beside every figure."""
+"""What made a result, where and when: the command, the machine line and the date kept beside every figure.
+
+`tax3d.cli` names the command it runs (`running`); a result made from Python instead names the function's module.
+"""
 
 from __future__ import annotations
 
 import datetime
 import os
 import platform
+import shlex
 from pathlib import Path
+
+_running: list[str] | None = None  # the `tax3d` command line being run: its name and options
+
+
+def running(argv: list[str] | None) -> None:
+    """Record the `tax3d` command line this process runs (None: none)."""
+    global _running
+    _running = None if argv is None else list(argv)
+
+
+def command(module: str) -> str:
+    """The `tax3d` command line being run, as typed; where none is, `module` (called from Python)."""
+    return "tax3d " + shlex.join(_running) if _running else f"{module}, called from Python"
+
+
+def made(module: str) -> dict:
+    """{"command", "machine", "date"} of a result made now."""
+    return {"command": command(module), "machine": machine(), "date": today()}
 
 
 def processor(cpuinfo: str | None = None) -> str | None:

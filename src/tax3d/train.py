@@ -567,9 +567,8 @@ def write_summary(out: Path, config: cfg.Config) -> None:
     kept_records = [r for r in records if "plan" in r or "val_rmse" in r]
     if records and (not kept_records or kept_records[-1] is not records[-1]):
         kept_records.append(records[-1])
-    made = {"command": "tax3d train " + " ".join(sys.argv[2:])} if sys.argv[1:2] == ["train"] else {}
     write_json(out / "summary.json", kept.stamp("train-log", {
-        **made, "machine": provenance.machine(), "date": provenance.today(),
+        **provenance.made("tax3d.train"),
         "run": str(out), "variant": config.model.variant, "val": list(config.data.val),
         "val_demos": config.train.val_demos, "val_samples": config.train.val_samples, "steps": config.train.steps,
         "source": f"{out / 'log.jsonl'}: the plan, every validation and the last step", "records": kept_records}),
