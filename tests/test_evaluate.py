@@ -125,7 +125,7 @@ def test_bad_inputs(capsys, checkpoint, tmp_path):
 
 def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
     from tax3d.evaluate import plan_jobs
-    from tax3d.policy import GoalPolicy
+    from tax3d.policies.goal import GoalPolicy
 
     default = plan_jobs(Args(checkpoint=checkpoint, task="hangbag", splits="unseen", episodes=1))
     chosen = plan_jobs(Args(checkpoint=checkpoint, task="hangbag", splits="unseen", episodes=1,
@@ -159,7 +159,7 @@ def test_medoid_is_the_sample_nearest_the_others():
 
 
 def test_the_policy_executes_the_first_sample():
-    from tax3d.policy import GoalPolicy
+    from tax3d.policies.goal import GoalPolicy
 
     shifts = np.array([5.0, 1.0, 0.0, -4.0, 3.0])[:, None, None]
 
@@ -181,7 +181,7 @@ def test_the_policy_executes_the_first_sample():
 
 def _policy_goals(model, cloth, anchor, **options):
     """The goals GoalPolicy predicts with these options in a stand-in scene, and what the model predicts with them."""
-    from tax3d.policy import GoalPolicy
+    from tax3d.policies.goal import GoalPolicy
 
     class Env:
         mesh = type("Mesh", (), {"grip_vertices": staticmethod(lambda: (0, 2))})()
@@ -195,7 +195,8 @@ def _policy_goals(model, cloth, anchor, **options):
 
 
 def test_sampler_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
-    from tax3d.evaluate import load_model, plan_jobs
+    from tax3d.evaluate import plan_jobs
+    from tax3d.policies.load import load_model
 
     assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].sampler is None
     assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, sampler="ddim"))[0].sampler == "ddim"
@@ -211,7 +212,8 @@ def test_sampler_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
 
 
 def test_max_points_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
-    from tax3d.evaluate import load_model, plan_jobs
+    from tax3d.evaluate import plan_jobs
+    from tax3d.policies.load import load_model
 
     assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].max_points is None
     assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, max_points=0))[0].max_points == 0

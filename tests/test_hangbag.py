@@ -143,7 +143,7 @@ def test_bag_expert_targets_the_hook_with_an_approach_waypoint_first():
 
 # ----------------------------------------------------------------- evaluation wiring
 def test_goal_policy_adds_the_task_offset_to_the_predicted_grip_vertices():
-    from tax3d.policy import GoalPolicy
+    from tax3d.policies.goal import GoalPolicy
 
     class Predictor:
         def predict(self, cloth, anchor, num_samples=1, steps=None, sampler=None, seed=0, max_points=None):

@@ -153,7 +153,7 @@ def test_generate_camera_out_bad_input_is_one_line(capsys, tmp_path):
 def test_the_policy_drives_the_grippers_to_the_goals_of_the_observed_points_nearest_the_grasps():
     from types import SimpleNamespace
 
-    from tax3d.policy import GoalPolicy
+    from tax3d.policies.goal import GoalPolicy
 
     cloth = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 1]])
     env = SimpleNamespace(anchor_points=lambda: np.zeros((3, 3)), mesh=SimpleNamespace(grip_vertices=lambda: (0, 3)))

@@ -1,6 +1,6 @@
 """`tax3d eval`: a checkpoint predicts goals, the policy executes them in the simulator, the success check judges.
 
-The environment runner (this module) is separate from the policy it evaluates (`tax3d.policy`). OUT gets results.json
+The environment runner (this module) is separate from the policy it evaluates (`tax3d.policies`). OUT gets results.json
 (the summary and every episode), summary.json (the summary alone: kept JSON of kind "eval", tax3d.kept) and the
 report.
 """
@@ -23,6 +23,8 @@ from tax3d.episodes import Episodes
 from tax3d.errors import UsageError
 from tax3d.options import Finite, NonNegative, OutputFolder, Positive
 from tax3d.parallel import check_backend, run_each
+from tax3d.policies.fixed import FixedGoal
+from tax3d.policies.load import check_sampling, load_model, policy_for
 from tax3d.sim.observe import CameraSpec
 
 # The official data's `val_ood` folder holds out-of-distribution poses; its `val` folder is evaluated as `val`.
@@ -119,30 +121,6 @@ class EvalJob:
 _PREDICTORS: dict = {}
 
 
-class FixedGoal:
-    """The `predict` interface of `Tax3D` around a goal that does not come from a network: a demo's own goal (an
-    array) or the training set's mean goal (a `MeanGoalBaseline`)."""
-
-    def __init__(self, goal):
-        self.goal = goal
-
-    def predict(self, action_points, anchor_points, num_samples=1, steps=None, sampler=None, seed=None,
-                return_trajectory=False, max_points=None):
-        goal = self.goal.predict(action_points, anchor_points) if hasattr(self.goal, "predict") else self.goal
-        goals = np.repeat(np.asarray(goal, dtype=np.float64)[None], num_samples, axis=0)
-        return (goals, goals[None]) if return_trajectory else goals
-
-
-def load_model(checkpoint, device: str = "cpu"):
-    """A TAX3D checkpoint, or a DP3 baseline one (its config.json says "kind": "dp3"), on `device`."""
-    from tax3d.baselines.dp3 import DP3, is_dp3_checkpoint
-    from tax3d.devices import pick_device
-    from tax3d.model.tax3d import Tax3D
-
-    model = (DP3 if is_dp3_checkpoint(checkpoint) else Tax3D).from_pretrained(checkpoint)
-    return model.to(pick_device(device))
-
-
 def _predictor(checkpoint: str, device: str = "cpu"):
     if (checkpoint, device) not in _PREDICTORS:
         import torch
@@ -164,7 +142,6 @@ def run_eval_job(job: EvalJob) -> dict:
 
 def episode(job: EvalJob) -> dict:
     from tax3d.metrics import grip_error, rmse
-    from tax3d.policy import GoalPolicy
     from tax3d.sim.scenes import process_env
     from tax3d.sim.episode import run_episode
     from tax3d.sim.tasks import get_task
@@ -174,20 +151,15 @@ def episode(job: EvalJob) -> dict:
         predictor = _predictor(job.checkpoint, job.device)
     else:
         predictor = FixedGoal(job.true_goal if job.goal == "demo" else job.mean_goal)
-    if job.goal == "model" and predictor.config.model.variant == "dp3":  # a policy of its own: no goal, no RMSE
-        from tax3d.baselines.dp3 import DP3Policy
-
-        policy = DP3Policy(predictor, job.seed)
-    else:
-        policy = GoalPolicy(predictor, job.samples, job.steps, job.seed, job.replan_every, trajectory=job.denoising,
-                            offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler,
-                            max_points=job.max_points, observe=_camera(job) if job.observe == "camera" else None)
+    policy = policy_for(predictor, job.samples, job.steps, job.seed, job.replan_every, trajectory=job.denoising,
+                        offset=task.policy_offset if job.offset is None else job.offset, sampler=job.sampler,
+                        max_points=job.max_points, observe=_camera(job) if job.observe == "camera" else None)
     ep = run_episode(process_env(job.floor, task.scene), job.cloth_params, job.rot_z, job.trans, policy)
     pred = policy.first_prediction
     errors = None if job.true_goal is None or pred is None else rmse(pred, job.true_goal[None])
     # the policy executes the first sample, at the rows it takes for the grasped vertices
-    grip = list(getattr(policy, "grip", ep.grip_vertices))
-    seen = getattr(policy, "first_cloud", None)
+    grip = list(ep.grip_vertices if policy.grip is None else policy.grip)
+    seen = policy.first_cloud
     executed_grip_error = None if errors is None or not grip else grip_error(pred[0], job.true_goal, grip)
     return {
         "split": job.split, "name": job.name, "success": bool(ep.success), "exploded": bool(ep.exploded),
@@ -433,8 +405,7 @@ def evaluate(args: Args, progress: bool = True, record: bool = True) -> dict:
             raise UsageError("--checkpoint: missing; expected a checkpoint folder (or --goal demo or mean with --data)")
         model = load_model(args.checkpoint, args.device)  # fails early, in one line, on a bad checkpoint or device
         _check_task(model, args)
-        if hasattr(model, "sampling") and model.spec.diffusion:  # TAX3D diffusion variants (not DP3, RD/RP)
-            model.sampling(args.steps, args.sampler, "--")
+        check_sampling(model, args.steps, args.sampler)
         variant = model.config.model.variant
     elif args.checkpoint is not None:
         raise UsageError(f"--checkpoint {args.checkpoint}: not used with --goal {args.goal}; expected one or the other")

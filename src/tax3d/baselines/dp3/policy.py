@@ -23,7 +23,7 @@ class DP3Policy:
     def __init__(self, model: DP3, seed: int = 0):
         self.model, self.seed = model.eval(), seed
         self.predict_seconds, self.predictions = 0.0, 0
-        self.first_prediction = None  # what GoalPolicy's callers read; DP3 predicts no goal cloud
+        self.first_prediction = self.first_cloud = self.grip = None  # GoalPolicy's: DP3 predicts no goal cloud
         self.denoising = None
 
     @classmethod

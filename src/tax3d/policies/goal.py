@@ -31,6 +31,7 @@ class GoalPolicy:
         self.predict_seconds, self.predictions = 0.0, 0
         self.first_prediction: np.ndarray | None = None  # (S, N, 3) world-frame goal samples
         self.first_cloud: np.ndarray | None = None  # (N, 3) the action cloud they were predicted from
+        self.grip: list[int] | None = None  # the action cloud's rows the grippers follow, from the first call
         self.denoising: np.ndarray | None = None  # (K, N, 3) intermediate goals of sample 0, noise to final
 
     def __call__(self, env, state):
