@@ -10,6 +10,7 @@ from pathlib import Path
 
 from tax3d import config as cfg
 from tax3d.atomic import write_text
+from tax3d.checkpoint import STATE_NAME, find_last
 from tax3d.digest import demos_digest
 from tax3d.errors import UsageError
 
@@ -21,6 +22,17 @@ PLANNED = {("train", "steps"), ("train", "val_every"), ("train", "save_every")}
 """fields a --train.minutes plan fixes at the run's start (config.json records them)"""
 DERIVED = {("data", "task")}
 """fields made from the demonstrations (their digest is compared instead)"""
+
+
+def checkpoint_to_resume(out: Path, resume: bool, fresh: bool) -> Path | None:
+    """OUT/last when a rerun continues the run there (None: a fresh start); --resume requires one, --fresh ignores
+    it."""
+    if resume and fresh:
+        raise UsageError("--fresh: not with --resume; expected one or the other")
+    last = None if fresh else find_last(out)
+    if resume and last is None:
+        raise UsageError(f"--resume: {out} holds no checkpoint to continue from (expected {out / 'last' / STATE_NAME})")
+    return last
 
 
 def differences(recorded: dict, saved: cfg.Config, command: cfg.Config,

@@ -41,7 +41,7 @@ from tax3d import provenance
 from tax3d import rerun
 from tax3d import runlock
 from tax3d.atomic import write_json
-from tax3d.checkpoint import (STATE_NAME, RunLog, find_last, read_log, read_weights, save_checkpoint,
+from tax3d.checkpoint import (STATE_NAME, RunLog, read_log, read_weights, save_checkpoint,
                               truncate_log)
 from tax3d.data.dataset import DemoDataset, demo_files
 from tax3d.data.format import data_task, grip_vertices, load_demo
@@ -350,11 +350,7 @@ def run(args: Args) -> int:
 
 def run_locked(args: Args, world: distributed.World, ending: contextlib.ExitStack) -> int:
     out = Path(args.out)
-    if args.resume and args.fresh:
-        raise UsageError("--fresh: not with --resume; expected one or the other")
-    last = None if args.fresh else find_last(out)
-    if args.resume and last is None:
-        raise UsageError(f"--resume: {out} holds no checkpoint to continue from (expected {out / 'last' / STATE_NAME})")
+    last = rerun.checkpoint_to_resume(out, args.resume, args.fresh)
     config = resolve_config(args, out, last)
     c = config.train
     if not config.data.train:

@@ -39,7 +39,7 @@ from tax3d.devices import machine_preset, pick_device
 from tax3d.errors import UsageError
 from tax3d.options import OutputFolder
 from tax3d.plan import Plan, timing_step
-from tax3d.train import STATE_NAME, find_last, save_checkpoint, truncate_log
+from tax3d.checkpoint import STATE_NAME, save_checkpoint, truncate_log
 
 ADAM_BETAS = (0.95, 0.999)  # DP3's optimiser settings (docs/dp3.md)
 EMA_POWER, EMA_MAX = 0.75, 0.9999  # DP3's EMA: decay 1 - (1 + step)^-0.75, capped
@@ -113,11 +113,7 @@ def run_locked(args: Args) -> int:
     from tqdm.auto import tqdm
 
     out = Path(args.out)
-    if args.resume and args.fresh:
-        raise UsageError("--fresh: not with --resume; expected one or the other")
-    last = None if args.fresh else find_last(out)
-    if args.resume and last is None:
-        raise UsageError(f"--resume: {out} holds no checkpoint to continue from (expected {out / 'last' / STATE_NAME})")
+    last = rerun.checkpoint_to_resume(out, args.resume, args.fresh)
     config = resolve_config(args, out, last)
     c = config.train
     if c.threads > 0:
