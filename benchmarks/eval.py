@@ -41,7 +41,7 @@ def main() -> None:
         common = dict(checkpoint=args.checkpoint, splits="unseen", steps=args.steps, first_index=2000, out=Path(out))
         wall1, one = timed(Args(episodes=args.episodes, **common), 1)
         wall2, two = timed(Args(episodes=2 * args.episodes, **common), 2)
-    print(json.dumps(kept.stamp("eval-benchmark", {
+    print(json.dumps(kept.stamp("eval-benchmark", 1, {
         "command": "python " + " ".join(sys.argv),
         "checkpoint": str(args.checkpoint.resolve().relative_to(ROOT) if args.checkpoint.resolve().is_relative_to(ROOT)
                           else args.checkpoint),

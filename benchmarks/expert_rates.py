@@ -49,7 +49,7 @@ def main() -> int:
                 row.update(broken=stats["broken"], worst=stats["integrity"], failed=stats["failed"])
             report["rates"].append({"task": task, "split": split, **row})
             print(json.dumps(report["rates"][-1]), file=sys.stderr, flush=True)
-    print(json.dumps(kept.stamp("expert-rates", report), indent=2))
+    print(json.dumps(kept.stamp("expert-rates", 1, report), indent=2))
     return 0
 
 

@@ -92,7 +92,7 @@ def main() -> int:
         report[split] = reset_checks(folder)
         if args.episodes > 0:
             report[split].update(expert_checks(folder, args.episodes, args.workers))
-    print(json.dumps(kept.stamp("fidelity", report), indent=2))
+    print(json.dumps(kept.stamp("fidelity", 1, report), indent=2))
     return 0
 
 

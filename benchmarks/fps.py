@@ -135,7 +135,7 @@ def main() -> int:
         result["numpy_real_clouds"] = real["numpy"]
         if "fpsample" in real:
             result["fpsample"]["real_clouds"] = real["fpsample"]
-    print(json.dumps(kept.stamp("fps-benchmark", result), indent=1))
+    print(json.dumps(kept.stamp("fps-benchmark", 1, result), indent=1))
     return 0
 
 

@@ -64,7 +64,7 @@ def main() -> int:
     for k in args.points:
         idx = farthest_point_sample(torch.as_tensor(demo["anchor_pc"]), k, start=0).numpy()
         out["anchor_points_off_the_pole"][f"fps_{k}"] = f"{int(mask[idx].sum())} of {k}"
-    print(json.dumps(kept.stamp("goal-spread", out), indent=2))
+    print(json.dumps(kept.stamp("goal-spread", 1, out), indent=2))
     return 0
 
 

@@ -38,7 +38,7 @@ def main() -> int:
             "cloths_with_both_goals": len(pairs),
             "goal_separation_rmse": float(np.mean([rmse(a, b) for a, b in pairs])) if pairs else None,
             "midpoint_rmse": float(np.mean([rmse((a + b) / 2, a) for a, b in pairs])) if pairs else None}
-    print(write_json(args.out, kept.stamp("mode-spread", out)))
+    print(write_json(args.out, kept.stamp("mode-spread", 1, out)))
     return 0
 
 

@@ -276,7 +276,7 @@ def main() -> None:
         out["precision"] = precision_steps(args.rounds)
     if "large" in parts:
         out["large_clouds"] = large_clouds(args.checkpoint, args.samples, args.rounds)
-    print(json.dumps(kept.stamp("model-benchmark", out)))
+    print(json.dumps(kept.stamp("model-benchmark", 1, out)))
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@
 
 Measures on the authors' data (../shared beside the project) and writes docs/results/official_val.json; the page,
 docs/results/official-simple.md, is built from it (and from docs/results/model_benchmark.json) by
-`tax3d results official-simple`.
+`python -m lab.results official-simple`.
 """
 
 from __future__ import annotations
@@ -73,10 +73,10 @@ def main() -> None:
     if not (OFFICIAL / "val").is_dir():
         sys.exit(f"{OFFICIAL / 'val'}: official data not found; expected ../shared beside the project")
     val_json = RESULTS / "official_val.json"
-    report = kept.stamp("official-val", measure(args.checkpoint.resolve(), args.samples, args.seed))
+    report = kept.stamp("official-val", 1, measure(args.checkpoint.resolve(), args.samples, args.seed))
     write_text(val_json, json.dumps(report, indent=2) + "\n")
     print(val_json)
-    print("run `tax3d results official-simple` to rebuild docs/results/official-simple.md")
+    print("run `python -m lab.results official-simple` to rebuild docs/results/official-simple.md")
 
 
 if __name__ == "__main__":

@@ -102,7 +102,7 @@ def main() -> int:
 
     rates = {probe_spec: probe(args, *probe_spec) for probe_spec in probes}
     rate, workers = max((r, w) for (precision, w), r in rates.items() if precision == "fp32")
-    summary = kept.stamp("paper-budget", {
+    summary = kept.stamp("paper-budget", 1, {
         "machine": provenance.machine(f"torch {torch.__version__}",
                                       torch.cuda.get_device_name(0) if args.device == "cuda" else "no GPU"),
         "date": provenance.today(),

@@ -101,7 +101,7 @@ def write_keep(args, commands: dict) -> None:
               "val_samples": args.val_samples, "digests": args.digests, "machine": provenance.machine(),
               "date": provenance.today(), "cores_per_arm": 1, "arms": arms}
     args.keep.parent.mkdir(parents=True, exist_ok=True)
-    write_json(args.keep, kept.stamp("paper-count", result), indent=1)
+    write_json(args.keep, kept.stamp("paper-count", 1, result), indent=1)
 
 
 def main() -> int:

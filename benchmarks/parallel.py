@@ -51,7 +51,7 @@ def main() -> int:
         local = timed_generate(args.task, args.demos, args.workers, "local", Path(tmp) / "local")
         ray = timed_generate(args.task, args.demos, args.workers, "ray", Path(tmp) / "ray")
         identical = same_demos(Path(tmp) / "local", Path(tmp) / "ray")
-    print(json.dumps(kept.stamp("parallel-benchmark", {
+    print(json.dumps(kept.stamp("parallel-benchmark", 1, {
         "command": "python " + " ".join(sys.argv),
         "machine": provenance.machine(),
         "date": provenance.today(), "task": args.task, "demos": args.demos, "workers": args.workers,

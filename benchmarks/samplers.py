@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
               "date": provenance.today(), "machine": provenance.machine(), "checkpoint": args.checkpoint,
               "demos": len(demos), "samples": args.samples, "seed": args.seed,
               "samplers": compare(model, demos, args.samples, args.seed, args.max_points)}
-    print(json.dumps(kept.stamp("samplers", result), indent=1))
+    print(json.dumps(kept.stamp("samplers", 1, result), indent=1))
     return 0
 
 

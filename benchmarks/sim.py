@@ -51,7 +51,7 @@ def main() -> None:
     steps = sim_steps_per_second(args.task)
     wall1, stats1 = episodes_wall(args.task, args.episodes, 1)
     wall2, stats2 = (None, None) if args.one_worker else episodes_wall(args.task, 2 * args.episodes, 2)
-    print(json.dumps(kept.stamp("sim-benchmark", {
+    print(json.dumps(kept.stamp("sim-benchmark", 1, {
         "command": "python " + " ".join(sys.argv),
         "task": args.task,
         "machine": provenance.machine(),

@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
             "episodes": len(chosen), "success_rate": sum(e["success"] for e in chosen) / len(chosen),
             "by": args.by, "bins": bins(chosen, edges, args.by), "machine": summary.get("machine"),
             "date": provenance.today()}
-    write_text(args.out, json.dumps(kept.stamp("success-by-rmse", record), indent=1) + "\n")
+    write_text(args.out, json.dumps(kept.stamp("success-by-rmse", 1, record), indent=1) + "\n")
     print(args.out)
     return 0
 

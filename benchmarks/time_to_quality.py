@@ -91,7 +91,7 @@ def collect(runs: list[list[str]], out: Path) -> int:
               "machine": provenance.machine(), "date": provenance.today(),
               "wall_minutes": max(r["minutes"] for r in results.values()), "runs": results}
     out.mkdir(parents=True, exist_ok=True)
-    print(write_json(out / "time_to_quality.json", kept.stamp("study", result), indent=1))
+    print(write_json(out / "time_to_quality.json", kept.stamp("study", 1, result), indent=1))
     return 0
 
 
@@ -152,7 +152,7 @@ def main() -> int:
         "date": provenance.today(), "wall_minutes": round((time.time() - started) / 60, 1),
         "runs": {name: summary(args.out / name, options, commands[name]) for name, options in args.run},
     }
-    print(write_json(args.out / "time_to_quality.json", kept.stamp("study", result), indent=1))
+    print(write_json(args.out / "time_to_quality.json", kept.stamp("study", 1, result), indent=1))
     return 0
 
 

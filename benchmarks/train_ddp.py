@@ -120,7 +120,7 @@ def main() -> None:
         "speedup_2_processes_vs_1": round(one / two, 3),
         "speedup_2_processes_vs_1_process_2_threads": round(runs["1_process_2_threads"]["step_s"] / two, 3),
     }
-    print(json.dumps(kept.stamp("train-ddp-benchmark", result), indent=2))
+    print(json.dumps(kept.stamp("train-ddp-benchmark", 1, result), indent=2))
 
 
 if __name__ == "__main__":

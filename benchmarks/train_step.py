@@ -206,7 +206,7 @@ def levers(config: cfg.Config, rounds: int) -> dict:
 
 def emit(result: dict, out: Path | None) -> None:
     """Print the kept JSON (kind "train-step-benchmark") and, with --out, write it to that file as well."""
-    text = json.dumps(kept.stamp("train-step-benchmark", result), indent=2)
+    text = json.dumps(kept.stamp("train-step-benchmark", 1, result), indent=2)
     if out:
         out.write_text(text + "\n")
     print(text)

@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
               "date": provenance.today(), "machine": provenance.machine(), "checkpoint": args.checkpoint,
               "trained_points": model.config.data.num_action_points, "demos": len(demos), "samples": samples,
               "seed": seed, "points": rows}
-    print(json.dumps(kept.stamp("val-points", result), indent=1))
+    print(json.dumps(kept.stamp("val-points", 1, result), indent=1))
     return 0
 
 

@@ -95,9 +95,11 @@ def make_demo(n: int = 10, m: int = 20, seed: int = 0) -> dict:
     }
 
 
-def one_line_error(capsys, argv, *expected) -> str:
-    """Run the CLI on argv; it must exit 2 with one line on stderr (no traceback) holding every expected text."""
-    from tax3d.cli import main
+def one_line_error(capsys, argv, *expected, main=None) -> str:
+    """Run `main` (tax3d's CLI where None) on argv; it must exit 2 with one line on stderr (no traceback) holding
+    every expected text."""
+    if main is None:
+        from tax3d.cli import main
 
     code = main(list(map(str, argv)))
     err = "\n".join(line for line in capsys.readouterr().err.replace("\r", "\n").splitlines()

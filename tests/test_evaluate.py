@@ -54,7 +54,7 @@ def test_one_episode_rollout_and_report(checkpoint, tmp_path):
     assert 0.0 <= low <= summary["splits"]["unseen"]["success_rate"] <= high <= 1.0 and high - low > 0.5
     assert (tmp_path / "report.html").exists()
     assert "Success rate" in format_table(summary["splits"])
-    from tax3d import kept
+    from lab.results import kept
 
     assert kept.load(tmp_path / "summary.json", ("eval",)) == summary  # the kept JSON: the summary alone
 

@@ -1,7 +1,8 @@
-"""The package's import graph: no two modules import each other, the results tooling has no cycle and imports
-tax3d modules at module level only, and inference does not import the training data.
+"""The import graphs: no two modules of the package import each other, the package never imports the lab (which is
+not installed with it), inference does not import the training data, and the lab's result-page machinery has no
+cycle and imports tax3d and lab modules at module level only.
 
-The graph holds every import of a tax3d module, at module level or inside a function (one there must not hide a
+A graph holds every import of a module of its tree, at module level or inside a function (one there must not hide a
 cycle)."""
 
 from __future__ import annotations
@@ -9,52 +10,62 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-SRC = Path(__file__).resolve().parents[1] / "src"
-RESULTS_TOOLING = ("tax3d.results", "tax3d.kept", "tax3d.pages")
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src"
+RESULTS_TOOLING = ROOT / "lab" / "results"
 
 
-def module_name(path: Path) -> str:
-    parts = path.relative_to(SRC).with_suffix("").parts
+def module_name(path: Path, base: Path) -> str:
+    parts = path.relative_to(base).with_suffix("").parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def imports(path: Path, modules: set[str]) -> set[str]:
-    """The tax3d modules that the module at `path` imports, anywhere in it."""
-    name = module_name(path)
+def imports(path: Path, base: Path, modules: set[str] | None = None) -> set[str]:
+    """The modules that the module at `path` (named from `base`) imports, anywhere in it: those among `modules`, or
+    every name imported where `modules` is None."""
+    name = module_name(path, base)
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found = set()
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
+            module = node.module or ""
             if node.level:
                 anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
-                base = ".".join(anchor + ([base] if base else []))
+                module = ".".join(anchor + ([module] if module else []))
             # `from tax3d.model import tax3d` imports the submodule; `from tax3d.model.tax3d import Tax3D` the module
-            found.update(f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules else base for alias in node.names)
-    return {m for m in found if m in modules and m != name}
+            found.update(f"{module}.{alias.name}" if modules and f"{module}.{alias.name}" in modules else module
+                         for alias in node.names)
+    return found if modules is None else {m for m in found if m in modules and m != name}
 
 
-def graph() -> dict[str, set[str]]:
-    paths = sorted(SRC.joinpath("tax3d").rglob("*.py"))
-    modules = {module_name(p) for p in paths}
-    return {module_name(p): imports(p, modules) for p in paths}
+def graph(folder: Path, base: Path) -> dict[str, set[str]]:
+    """{module: the modules of the tree it imports} for every module under `folder`, named from `base`."""
+    paths = sorted(folder.rglob("*.py"))
+    modules = {module_name(p, base) for p in paths}
+    return {module_name(p, base): imports(p, base, modules) for p in paths}
+
+
+def package_graph() -> dict[str, set[str]]:
+    return graph(SRC / "tax3d", SRC)
 
 
 def test_no_two_modules_import_each_other():
-    g = graph()
+    g = package_graph()
     mutual = {frozenset({a, b}) for a, targets in g.items() for b in targets if a in g.get(b, ())}
     assert mutual == set()
 
 
-def tooling(name: str) -> bool:
-    return any(name == m or name.startswith(m + ".") for m in RESULTS_TOOLING)
+def test_the_package_never_imports_the_lab():
+    for path in sorted((SRC / "tax3d").rglob("*.py")):
+        names = imports(path, SRC)
+        assert not any(n == "lab" or n.startswith("lab.") for n in names), f"{path.relative_to(ROOT)} imports the lab"
 
 
 def test_the_results_tooling_has_no_import_cycle():
-    g = {name: {t for t in targets if tooling(t)} for name, targets in graph().items() if tooling(name)}
-    assert {"tax3d.results", "tax3d.kept", "tax3d.pages.task", "tax3d.pages.card"} <= set(g)
+    g = graph(RESULTS_TOOLING, ROOT)
+    assert {"lab.results.build", "lab.results.kept", "lab.results.pages.task", "lab.results.pages.card"} <= set(g)
     done: set[str] = set()
 
     def visit(name: str, path: tuple[str, ...]) -> None:
@@ -68,21 +79,19 @@ def test_the_results_tooling_has_no_import_cycle():
         visit(name, ())
 
 
-def test_the_results_tooling_imports_tax3d_modules_at_module_level_only():
-    for path in sorted(SRC.joinpath("tax3d").rglob("*.py")):
-        if not tooling(module_name(path)):
-            continue
+def test_the_results_tooling_imports_tax3d_and_lab_modules_at_module_level_only():
+    for path in sorted(RESULTS_TOOLING.rglob("*.py")):
         for function in ast.walk(ast.parse(path.read_text())):
             if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 for node in ast.walk(function):
                     names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
                              [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
-                    assert not any(n.startswith("tax3d") or (isinstance(node, ast.ImportFrom) and node.level)
+                    assert not any(n.startswith(("tax3d", "lab")) or (isinstance(node, ast.ImportFrom) and node.level)
                                    for n in names), f"{path.name}: {function.name} imports {names}"
 
 
 def test_the_model_and_the_config_do_not_import_the_training_data():
-    g = graph()
+    g = package_graph()
     assert "tax3d.model.tax3d" in g and "tax3d.config" in g
     for name, targets in g.items():
         if name == "tax3d.config" or name.startswith("tax3d.model"):

@@ -1,11 +1,14 @@
 """The ledger of test scorings: it only grows, and `tax3d eval` writes to it only at the table's test indices."""
 
 import json
+from pathlib import Path
 
 import pytest
 
 from tax3d import ledger
 from tax3d.errors import UsageError
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def line(row: str, won: int) -> dict:
@@ -55,8 +58,6 @@ def test_eval_records_only_the_tables_test_indices(tmp_path, own_ledger):
 
 def test_the_repositorys_ledger_holds_every_kept_row_and_only_grew_from_commit_to_commit():
     import subprocess
-
-    from tax3d.results import ROOT
 
     lines = ledger.read(ledger.REPOSITORY_LEDGER)
     for path in sorted((ROOT / "docs" / "results" / "table").glob("*/*/*.json")):

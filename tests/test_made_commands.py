@@ -15,7 +15,7 @@ import tyro
 
 from tax3d import benchmark
 from tax3d import config as cfg
-from tax3d.commands import parses
+from lab.results.commands import parses
 from tax3d.train import config_of_command, resolve_config
 
 ROOT = Path(__file__).resolve().parents[1]

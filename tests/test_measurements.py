@@ -1,5 +1,5 @@
-"""Measurements of benchmarks/ that `tax3d results` reads: mode_spread.py, success_by_rmse.py and the curves that
-time_to_quality.py keeps, each printed or written as kept JSON of its kind (tax3d.kept)."""
+"""Measurements of benchmarks/ that `python -m lab.results` reads: mode_spread.py, success_by_rmse.py and the curves
+that time_to_quality.py keeps, each printed or written as kept JSON of its kind (lab.results.kept)."""
 
 from __future__ import annotations
 
@@ -100,7 +100,7 @@ def test_time_to_quality_collect_keeps_the_training_loss_between_validations(tmp
     done = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "time_to_quality.py"), "--collect", "x", str(run),
                            "tax3d train ...", "--out", str(tmp_path / "out")], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    from tax3d import kept
+    from lab.results import kept
 
     curve = kept.load(tmp_path / "out" / "time_to_quality.json", ("study",))["runs"]["x"]["curve"]
     assert [(p["step"], p["minutes"], p["train_mse"]) for p in curve] == [(2, 0.5, 6.0), (4, 2.0, 2.0)]

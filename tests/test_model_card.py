@@ -1,5 +1,6 @@
-"""Model cards: each shipped checkpoint's README.md is built by `tax3d results` from its config.json, kept evaluation
-and kept log (docs/results/pages/model-cards.toml), and `tax3d results --check` catches a card that drifted."""
+"""Model cards: each shipped checkpoint's README.md is built by `python -m lab.results` from its config.json, kept
+evaluation and kept log (docs/results/pages/model-cards.toml), and `python -m lab.results --check` catches a card that
+drifted."""
 
 from __future__ import annotations
 
@@ -9,17 +10,17 @@ from pathlib import Path
 
 import pytest
 
-from tax3d import kept
-from tax3d.cli import main
+from lab.results.build import main
+from tax3d.kept import stamp
 from tests.conftest import one_line_error, tiny_model
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def evaluation(task: str, splits: dict, **extra) -> dict:
-    return kept.stamp("eval", {"summary": {"task": task, "date": "2026-01-01", "machine": "m",
-                                           "command": "tax3d eval --checkpoint runs/x/best", "splits": splits,
-                                           **extra}})
+    return stamp("eval", 1, {"summary": {"task": task, "date": "2026-01-01", "machine": "m",
+                                         "command": "tax3d eval --checkpoint runs/x/best", "splits": splits,
+                                         **extra}})
 
 
 def repository(tmp_path: Path, cards: list[dict], files: dict[str, dict]) -> Path:
@@ -46,11 +47,11 @@ def checkpoint(tmp_path: Path, name: str, **settings) -> None:
 
 
 def built(root: Path, name: str) -> str:
-    assert main(["results", "--root", str(root)]) == 0
+    assert main(["--root", str(root)]) == 0
     return (root.parent.parent / "checkpoints" / name / "README.md").read_text()
 
 
-LOG = kept.stamp("train-log", {"source": "runs/x/log.jsonl", "records": [
+LOG = stamp("train-log", 2, {"source": "runs/x/log.jsonl", "records": [
     {"step": 1, "loss": 1.0, "seconds": 1.0, "plan": {"minutes": 30.0}},
     {"step": 2, "loss": 0.5, "seconds": 120.0, "val_rmse": 0.8},
     {"step": 3, "loss": 0.4, "seconds": 1800.0, "val_rmse": 0.6}]})
@@ -72,27 +73,27 @@ def test_model_card_is_built_from_the_checkpoint_log_and_evaluation(tmp_path, ca
     assert "best validation RMSE: 0.600 at step 3" in card and "DATA\nTRAIN" in card
     assert "- training demonstrations: `data/unimodal/train256` (made by the first command below)" in card
     assert "grasped vertices" not in card  # the uniform weight goes unmentioned
-    assert main(["results", "--root", str(root), "--check"]) == 0
+    assert main(["--root", str(root), "--check"]) == 0
 
     # a card edited by hand, or one whose evaluation changed, differs from what the pages build
     readme = tmp_path / "checkpoints" / "tax3d-cd-x" / "README.md"
     readme.write_text(card.replace("0.875", "0.90"))
     capsys.readouterr()
-    assert main(["results", "--root", str(root), "--check"]) == 1
+    assert main(["--root", str(root), "--check"]) == 1
     assert "tax3d-cd-x/README.md differs" in capsys.readouterr().err
     readme.write_text(card)
     splits["ood"]["success_rate"] = 0.625
     (root / "evals" / "x.json").write_text(json.dumps(evaluation("hangproccloth-unimodal", splits)))
-    assert main(["results", "model-cards", "--root", str(root), "--check"]) == 1
+    assert main(["model-cards", "--root", str(root), "--check"]) == 1
     assert "tax3d-cd-x/README.md differs" in capsys.readouterr().err
 
 
 def test_model_card_of_a_run_s_last_weights_names_them_beside_the_lowest_validation(tmp_path):
     checkpoint(tmp_path, "tax3d-cd-x", data__task="hangproccloth-multimodal", data__grip_weight=16.0)
-    log = kept.stamp("train-log", {"source": "log", "records": [{"step": 2, "loss": 0.5, "seconds": 120.0,
-                                                                  "val_rmse": 0.8},
-                                                                 {"step": 3, "loss": 0.4, "seconds": 1800.0,
-                                                                  "val_rmse": 0.9}]})
+    log = stamp("train-log", 2, {"source": "log", "records": [{"step": 2, "loss": 0.5, "seconds": 120.0,
+                                                                "val_rmse": 0.8},
+                                                               {"step": 3, "loss": 0.4, "seconds": 1800.0,
+                                                                "val_rmse": 0.9}]})
     root = repository(tmp_path, [{"checkpoint": "checkpoints/tax3d-cd-x", "eval": "evals/x.json",
                                   "log": "training/x-log.json", "data": "DATA", "train": "TRAIN"}],
                       {"evals/x.json": evaluation("hangproccloth-multimodal", {"unseen": {
@@ -119,9 +120,9 @@ def test_model_card_of_a_run_whose_log_was_not_kept_says_so(tmp_path):
 
 def test_model_card_of_a_checkpoint_trained_on_the_authors_data(tmp_path):
     checkpoint(tmp_path, "tax3d-cd-official", data__task="hangproccloth-simple", data__rotate=True)
-    report = kept.stamp("official-val", {"command": "python benchmarks/official_report.py", "date": "2026-01-02",
-                                         "machine": "n", "demos": 40, "samples": 5, "mean_goal_baseline_rmse": 1.1,
-                                         "samplers": {"ddpm_100": {"rmse": 0.21, "rmse_min_of_samples": 0.19}}})
+    report = stamp("official-val", 1, {"command": "python benchmarks/official_report.py", "date": "2026-01-02",
+                                       "machine": "n", "demos": 40, "samples": 5, "mean_goal_baseline_rmse": 1.1,
+                                       "samplers": {"ddpm_100": {"rmse": 0.21, "rmse_min_of_samples": 0.19}}})
     root = repository(tmp_path, [{"checkpoint": "checkpoints/tax3d-cd-official", "eval": "evals/x.json",
                                   "official": "official_val.json", "data": "D", "train": "T"}],
                       {"evals/x.json": evaluation("hangproccloth-simple", {"unseen": {
@@ -144,11 +145,11 @@ def test_model_card_bad_input_is_one_line_naming_the_file(tmp_path, capsys, brok
     root = repository(tmp_path, [{"checkpoint": "checkpoints/ckpt", "eval": "evals/x.json",
                                   "official": "official_val.json", "data": "D", "train": "T"}],
                       {"evals/x.json": evaluation("hangproccloth-simple", {}),
-                       "official_val.json": kept.stamp("official-val", {"samplers": {}})})
+                       "official_val.json": stamp("official-val", 1, {"samplers": {}})})
     target = {"eval": root / "evals" / "x.json", "official": root / "official_val.json",
               "checkpoint": tmp_path / "checkpoints" / "ckpt" / "config.json"}[broken]
     target.write_text("{not json")
-    one_line_error(capsys, ["results", "--root", root], str(target), "not valid JSON", says)
+    one_line_error(capsys, ["--root", root], str(target), "not valid JSON", says, main=main)
     assert not (tmp_path / "checkpoints" / "ckpt" / "README.md").exists()
 
 
@@ -161,7 +162,7 @@ def test_every_shipped_checkpoint_has_its_card_declared():
 def table_row(sha: str) -> dict:
     split = {"episodes": 40, "success_rate": 0.95, "success_ci95": [0.83, 0.99], "rmse": 0.34,
              "coverage_rmse": 0.24, "precision_rmse": 0.34}
-    return kept.stamp("table-row", {
+    return stamp("table-row", 1, {
         "task": "hangproccloth-unimodal", "variant": "cd", "preset": "cpu", "minutes": 60.0, "num_train": 512,
         "weights": "best", "weights_chosen_on": "val", "weights_sha256": sha,
         "validations": [{"step": 10, "val_rmse": 0.5}, {"step": 20, "val_rmse": 0.3}, {"step": 25, "val_rmse": 0.31}],
@@ -185,7 +186,7 @@ def test_model_card_of_a_table_row_states_its_protocol_and_one_command(tmp_path,
     assert "weights chosen on `val`: these are the run's best weights, validation RMSE 0.300 at step 20" in card
     assert "```bash\ntax3d benchmark --task hangproccloth-unimodal --variants cd" in card
     assert "On the same episodes" not in card  # no floor or ceiling scored yet
-    assert main(["results", "--root", str(root), "--check"]) == 0
+    assert main(["--root", str(root), "--check"]) == 0
 
     # the floor and ceiling of the same table, once scored, bound the card's success
     for key, unseen, ood in (("floor", 0.35, 0.3), ("ceiling", 0.9, 0.875)):
@@ -198,5 +199,5 @@ def test_model_card_of_a_table_row_states_its_protocol_and_one_command(tmp_path,
 
     # the checkpoint's weights must be the row's: another sha is a one-line error naming both
     (root / "table/hangproccloth-unimodal/512/cd.json").write_text(json.dumps(table_row("0" * 64)))
-    one_line_error(capsys, ["results", "model-cards", "--root", root], "tax3d-cd-x/config.json", "0" * 64,
-                   "the weights of the row")
+    one_line_error(capsys, ["model-cards", "--root", root], "tax3d-cd-x/config.json", "0" * 64,
+                   "the weights of the row", main=main)

@@ -7,9 +7,10 @@ import subprocess
 import sys
 from pathlib import Path
 
-from tax3d import kept
-from tax3d.cli import main
-from tax3d.pages import plots
+from lab.results import kept
+from lab.results.build import main
+from lab.results.pages import plots
+from tax3d.kept import stamp
 from tests.conftest import write_demos
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,9 +74,9 @@ def test_the_page_draws_each_study_against_samples_with_the_papers_budget(tmp_pa
              "train": "data/t", "val": "data/v", "val_demos": 20, "val_samples": 2,
              "digests": {"train": "a" * 64, "val": "b" * 64}, "machine": "m", "date": "2026-01-01",
              "cores_per_arm": 1, "arms": {"cpu": arm(16, [0.9, 0.6, 0.7]), "scene": arm(16, [0.95, 0.7, 0.5])}}
-    (root / "pc" / "u.json").write_text(json.dumps(kept.stamp("paper-count", study)))
+    (root / "pc" / "u.json").write_text(json.dumps(stamp("paper-count", 1, study)))
     (root / "pc" / "evals").mkdir()
-    (root / "pc" / "evals" / "scene-200.json").write_text(json.dumps(kept.stamp("eval", {"summary": {
+    (root / "pc" / "evals" / "scene-200.json").write_text(json.dumps(stamp("eval", 1, {"summary": {
         "splits": {"val": {"success_rate": 0.825, "episodes": 40, "success_ci95": [0.68, 0.91]}}}})))
     (root / "pages" / "pc.toml").write_text('''kind = "paper-count"
 title = "T"
@@ -88,7 +89,7 @@ summary = "pc/u.json"
 plot = "pc/u.png"
 evals = "pc/evals"
 ''')
-    assert main(["results", "--root", str(root)]) == 0
+    assert main(["--root", str(root)]) == 0
     page = (root / "pc.md").read_text()
     assert "cpu is lowest at 0.600, scene ends at 0.500." in page
     assert "| cpu | `(none)` | 4,800 (0.3) | 0.600 (3,200) | 0.700 |" in page
@@ -96,4 +97,4 @@ evals = "pc/evals"
     source = plots.drawn_from((root / "pc" / "u.png").read_bytes())
     assert source["marks"] == [["the paper's budget", 8_000_000.0]]
     assert [r[0] for r in source["runs"]] == ["cpu", "scene"] and source["runs"][1][2] == [0.95, 0.7, 0.5]
-    assert main(["results", "--root", str(root), "--check"]) == 0
+    assert main(["--root", str(root), "--check"]) == 0

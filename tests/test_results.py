@@ -1,5 +1,6 @@
-"""`tax3d results`: pages built from declarations and kept JSON (the task pages and the measurement pages), --check
-(plots by what they are drawn from), bad input (a kept JSON of another kind or version), the paper's data file."""
+"""`python -m lab.results`: pages built from declarations and kept JSON (the task pages and the measurement pages),
+--check (plots by what they are drawn from), bad input (a kept JSON of another kind or version), the paper's data
+file."""
 
 from __future__ import annotations
 
@@ -11,10 +12,12 @@ from pathlib import Path
 
 import pytest
 
-from tax3d import kept, results
-from tax3d.cli import main
-from tax3d.pages import plots
-from tax3d.pages.page import PLACEHOLDER, SPLITS
+from lab.results import kept
+from lab.results.build import build, declaration, main
+from lab.results.pages import plots
+from lab.results.pages.page import PLACEHOLDER, SPLITS
+from lab.results.pages.task import TaskPage
+from tax3d.kept import stamp
 from tests.conftest import one_line_error
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -54,7 +57,7 @@ summary = "evals/cd-curve.json"
 def eval_summary(success: float, rmse: float) -> dict:
     split = {"episodes": 20, "success_rate": success, "rmse": rmse, "coverage_rmse": rmse / 2,
              "precision_rmse": rmse, "predict_seconds": 0.5, "sim_seconds": 4.0, "failed_runs": 0}
-    return kept.stamp("eval", {"summary": {
+    return stamp("eval", 1, {"summary": {
         "checkpoint": "runs/cd/best", "task": "hangproccloth-unimodal", "command": "tax3d eval ...",
         "machine": "test machine", "date": "2026-01-01", "policy_offset": [0.0, 0.0, 0.0],
         "splits": {k: dict(split) for k in SPLITS}}})
@@ -68,20 +71,20 @@ def root(tmp_path: Path) -> Path:
     shutil.copy(RESULTS / "paper.toml", tmp_path / "paper.toml")
     (tmp_path / "pages" / "fixture.toml").write_text(PAGE)
     (tmp_path / "evals" / "cd.json").write_text(json.dumps(eval_summary(0.75, 0.8125)))
-    floor = kept.stamp("fixed-goal", {
+    floor = stamp("fixed-goal", 1, {
         "command": "python scripts/oracle_policy.py --goal mean", "goal": "mean", "offset": [0.0, 0.0, 0.0],
         "machine": "test machine", "date": "2026-01-02",
         "splits": {k: {"episodes": 20, "success_rate": 0.25, "rmse": 1.5} for k in SPLITS}})
     (tmp_path / "evals" / "floor.json").write_text(json.dumps(floor))
-    curve = kept.stamp("val-curve", {"run": "runs/cd", "val": ["data/u/unseen"], "val_demos": 10, "val_samples": 2,
-                                     "steps": 2000, "points": [{"step": 1000, "val_rmse": 2.5},
-                                                               {"step": 2000, "val_rmse": 1.25}]})
+    curve = stamp("val-curve", 1, {"run": "runs/cd", "val": ["data/u/unseen"], "val_demos": 10, "val_samples": 2,
+                                   "steps": 2000, "points": [{"step": 1000, "val_rmse": 2.5},
+                                                             {"step": 2000, "val_rmse": 1.25}]})
     (tmp_path / "evals" / "cd-curve.json").write_text(json.dumps(curve))
     return tmp_path
 
 
 def test_page_from_fixture_summaries(root, capsys):
-    assert main(["results", "--root", str(root)]) == 0
+    assert main(["--root", str(root)]) == 0
     text = (root / "fixture.md").read_text()
     assert text.startswith("# Fixture task\n\nTAX3D-CD hangs 0.75 of `unseen` cloths against the paper's 0.90.\n")
     assert "| TAX3D-CD, cpu preset, fixture | 0.75 | 0.75 | 0.75 | 0.812 | 0.812 | 0.812 | 20 / 20 / 20 |" in text
@@ -91,26 +94,26 @@ def test_page_from_fixture_summaries(root, capsys):
     assert "| 2,000 | 1.250 |" in text  # the validation curve
     assert "`tax3d train --preset cpu --out runs/cd`" in text and "test machine, 2026-01-01" in text
     assert (root / "fixture.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert main(["results", "--root", str(root), "--check"]) == 0
+    assert main(["--root", str(root), "--check"]) == 0
 
 
 def test_plot_is_the_same_on_every_run(root):
-    first = results.build(root)
-    assert first == results.build(root)
+    first = build(root)
+    assert first == build(root)
 
 
 def test_check_compares_a_plot_by_what_it_is_drawn_from(root, capsys):
     """Another matplotlib draws other pixels from the same data: --check passes; other data: it names the plot."""
-    assert main(["results", "--root", str(root)]) == 0
+    assert main(["--root", str(root)]) == 0
     png = root / "fixture.png"
     source = plots.drawn_from(png.read_bytes())
     assert source["plot"] == "success-bars" and source["success"][0] == [0.75, 0.75, 0.75]
     fig = plots._figure(2.0, 2.0)
     png.write_bytes(plots._png(fig, source))  # other pixels, the same data
-    assert main(["results", "--root", str(root), "--check"]) == 0
+    assert main(["--root", str(root), "--check"]) == 0
     png.write_bytes(plots._png(fig, {**source, "success": [[0.5, 0.75, 0.75], *source["success"][1:]]}))
     capsys.readouterr()
-    assert main(["results", "--root", str(root), "--check"]) == 1
+    assert main(["--root", str(root), "--check"]) == 1
     assert "fixture.png differs" in capsys.readouterr().err
 
 
@@ -122,34 +125,34 @@ def test_kept_json_of_another_kind_or_version_is_a_one_line_error(root, capsys, 
     path = root / "evals" / "cd.json"
     data = {**json.loads(path.read_text()), **change}
     path.write_text(json.dumps({k: v for k, v in data.items() if v is not None}))
-    one_line_error(capsys, ["results", "--root", root], str(path), says)
+    one_line_error(capsys, ["--root", root], str(path), says, main=main)
 
 
 def test_a_long_note_or_verdict_is_a_one_line_error(root, capsys):
     page = root / "pages" / "fixture.toml"
     text = page.read_text()
     page.write_text(text.replace('text = "The floor hangs', 'text = "' + "word " * 60 + 'The floor hangs'))
-    one_line_error(capsys, ["results", "--root", root], "note 'Reading the table'", "expected at most 50")
+    one_line_error(capsys, ["--root", root], "note 'Reading the table'", "expected at most 50", main=main)
     page.write_text(text.replace("against the paper's {paper.CD.success.unseen}.",
                                  "against the paper's {paper.CD.success.unseen}. One. Two."))
-    one_line_error(capsys, ["results", "--root", root], "verdict: 3 sentences; expected at most 2")
+    one_line_error(capsys, ["--root", root], "verdict: 3 sentences; expected at most 2", main=main)
     page.write_text(text.replace('definitions = "RMSE and success as defined."', ""))
-    one_line_error(capsys, ["results", "--root", root], "fixture.toml: no definitions")
+    one_line_error(capsys, ["--root", root], "fixture.toml: no definitions", main=main)
 
 
 def test_check_names_a_page_whose_summary_changed(root, capsys):
-    assert main(["results", "--root", str(root)]) == 0
+    assert main(["--root", str(root)]) == 0
     (root / "evals" / "cd.json").write_text(json.dumps(eval_summary(0.5, 0.8125)))
     capsys.readouterr()
-    assert main(["results", "--root", str(root), "--check"]) == 1
+    assert main(["--root", str(root), "--check"]) == 1
     err = capsys.readouterr().err
     assert "fixture.md differs" in err
-    assert main(["results", "fixture", "--root", str(root), "--check"]) == 1
+    assert main(["fixture", "--root", str(root), "--check"]) == 1
 
 
 def test_missing_summary_names_the_row(root, capsys):
     (root / "evals" / "floor.json").unlink()
-    assert main(["results", "--root", str(root)]) == 2
+    assert main(["--root", str(root)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "row 'floor'" in err and "evals/floor.json not found" in err
     assert not (root / "fixture.md").exists()
@@ -158,7 +161,7 @@ def test_missing_summary_names_the_row(root, capsys):
 @pytest.mark.parametrize("argv, words", [(["nope"], "page 'nope': expected one of fixture"),
                                         (["--root", "/nonexistent"], "--root /nonexistent: expected a results folder")])
 def test_bad_options_are_one_line_exit_2(root, capsys, argv, words):
-    assert main(["results", *argv] + ([] if "--root" in argv else ["--root", str(root)])) == 2
+    assert main(argv + ([] if "--root" in argv else ["--root", str(root)])) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words in err, err
 
@@ -166,7 +169,7 @@ def test_bad_options_are_one_line_exit_2(root, capsys, argv, words):
 def test_placeholder_without_a_value_is_an_error(root, capsys):
     page = root / "pages" / "fixture.toml"
     page.write_text(page.read_text().replace("{cd.ood.rmse:.3f}", "{cd.ood.nothing}"))
-    assert main(["results", "--root", str(root)]) == 2
+    assert main(["--root", str(root)]) == 2
     assert "placeholder {cd.ood.nothing}" in capsys.readouterr().err
 
 
@@ -193,12 +196,12 @@ def _prose(text: str) -> list[str]:
 
 
 def test_no_paragraph_over_120_words_outside_details():
-    built = results.build(RESULTS)
+    built = build(RESULTS)
     assert {p.name for p in built} >= {"hangproccloth-sim.md", "official-simple.md", "training.md"}
     for path, data in built.items():
         if path.suffix == ".md" and path.name != "README.md":
             text = data.decode()
-            if "<!-- study -->" in text:  # docs/results/training.md: the section `tax3d results` builds
+            if "<!-- study -->" in text:  # docs/results/training.md: the section `python -m lab.results` builds
                 text = text.split("<!-- study -->", 1)[1].split("<!-- /study -->", 1)[0]
             for paragraph in _prose(text):
                 assert len(paragraph.split()) <= 120, f"{path.name}: {paragraph[:80]}..."
@@ -216,8 +219,8 @@ def test_notes_have_no_hand_typed_numbers():
             assert not re.search(r"\d", bare), f"{file.name}: a hand-typed number in {bare[:200]!r}"
 
 
-def test_committed_pages_are_what_tax3d_results_builds(capsys):
-    assert main(["results", "--check"]) == 0, capsys.readouterr().err
+def test_committed_pages_are_what_lab_results_builds(capsys):
+    assert main(["--check"]) == 0, capsys.readouterr().err
 
 
 def test_each_task_page_opens_with_its_verdict_then_the_table():
@@ -237,6 +240,16 @@ def test_every_kept_json_declares_a_kind_that_loads():
             kept.config(path)
         else:
             kept.load(path)
+
+
+def test_every_writer_stamps_a_kind_and_version_that_the_pages_read():
+    """Each `kept.stamp(KIND, VERSION, ...)` of the package, the benchmarks and the lab writes what KINDS reads, at
+    the last version it reads."""
+    stamps = [m for folder in ("src", "benchmarks", "lab") for path in sorted((ROOT / folder).rglob("*.py"))
+              for m in re.finditer(r'kept\.stamp\("([a-z-]+)", (\d+),', path.read_text())]
+    assert len(stamps) >= 20
+    for m in stamps:
+        assert m.group(1) in kept.KINDS and int(m.group(2)) == kept.KINDS[m.group(1)][0][-1], m.group(0)
 
 
 # -- the measurement pages: the simulation page, the official-data page, the training study -------------------------
@@ -498,14 +511,14 @@ def measured(tmp_path: Path) -> Path:
     for rel, data in measurement_json().items():
         (root / rel).parent.mkdir(parents=True, exist_ok=True)
         kind = kind_of(rel)
-        (root / rel).write_text(json.dumps(data if kind is None else kept.stamp(kind, data)))
+        (root / rel).write_text(json.dumps(data if kind is None else stamp(kind, kept.KINDS[kind][0][-1], data)))
     (root / "training.md").write_text("# T\n\nbefore\n<!-- study -->\nold\n<!-- /study -->\nafter\n")
     (root.parent / "training.md").write_text("# G\n<!-- differences -->\nold\n<!-- /differences -->\nend\n")
     return root
 
 
 def test_measurement_pages_from_fixture_json(measured):
-    assert main(["results", "--root", str(measured)]) == 0
+    assert main(["--root", str(measured)]) == 0
     sim = (measured / "hangproccloth-sim.md").read_text()
     assert sim.startswith("# HangProcCloth simulation: fidelity, pseudo-expert, speed\n\nOur HangProcCloth-simple "
                           "scene starts where the official demonstrations start (initial cloth within 2.0e-05 of ")
@@ -560,8 +573,8 @@ def test_measurement_pages_from_fixture_json(measured):
     assert ("| the `v` weighting of the loss (`paper`: the epsilon MSE) | 0.500 (60 min) / 0.550 (60 min) | - | "
             "ttq-4: v-loss; ttq-2: eps-subsets-ema |") in guide
     assert "| 0.65 / 0.65 against 0.60 / 0.55 | ttq-6: v-95min; ttq-7: v-rotate-95min |" in guide
-    assert main(["results", "--root", str(measured), "--check"]) == 0
-    assert results.build(measured) == results.build(measured)  # the plot too
+    assert main(["--root", str(measured), "--check"]) == 0
+    assert build(measured) == build(measured)  # the plot too
 
 
 @pytest.mark.parametrize("rel, old, new, page", [
@@ -572,13 +585,13 @@ def test_measurement_pages_from_fixture_json(measured):
     ("model_benchmark.json", '"seconds": 1.0', '"seconds": 2.0', "official-simple.md"),
     ("training/ttq-1.json", '"val_rmse": 0.7', '"val_rmse": 0.75', "training.md")])
 def test_check_names_a_measurement_page_whose_json_changed(measured, capsys, rel, old, new, page):
-    assert main(["results", "--root", str(measured)]) == 0
+    assert main(["--root", str(measured)]) == 0
     path = measured / rel
     text = path.read_text()
     assert old in text
     path.write_text(text.replace(old, new))
     capsys.readouterr()
-    assert main(["results", "--root", str(measured), "--check"]) == 1
+    assert main(["--root", str(measured), "--check"]) == 1
     assert f"{page} differs" in capsys.readouterr().err
 
 
@@ -588,14 +601,14 @@ def test_check_names_a_measurement_page_whose_json_changed(measured, capsys, rel
                                  "training/ttq-6.json"])
 def test_missing_measurement_json_is_a_one_line_error(measured, capsys, rel):
     (measured / rel).unlink()
-    err = one_line_error(capsys, ["results", "--root", measured])
+    err = one_line_error(capsys, ["--root", measured], main=main)
     assert rel.rsplit("/", 1)[-1].replace("ttq-1.json", "ttq-*.json") in err, err
     assert not (measured / "official-simple.md").exists() and "old" in (measured / "training.md").read_text()
 
 
 def test_training_page_without_its_markers_is_a_one_line_error(measured, capsys):
     (measured / "training.md").write_text("# T\n")
-    one_line_error(capsys, ["results", "training", "--root", measured], "training.md: no <!-- study -->")
+    one_line_error(capsys, ["training", "--root", measured], "training.md: no <!-- study -->", main=main)
 
 
 def test_the_readme_row_is_the_protocols_cd_once_it_is_run(root):
@@ -604,9 +617,9 @@ def test_the_readme_row_is_the_protocols_cd_once_it_is_run(root):
     from tests.test_table import row, scored
 
     def readme_row() -> str:
-        spec = results.declaration(root / "pages" / "fixture.toml")
+        spec = declaration(root / "pages" / "fixture.toml")
         paper = tomllib.loads((root / "paper.toml").read_text())
-        return results.TaskPage(root / "pages" / "fixture.toml", root, paper, spec).readme_row()
+        return TaskPage(root / "pages" / "fixture.toml", root, paper, spec).readme_row()
 
     assert "| Fixture | 0.75 / 0.75 (TAX3D-CD, cpu preset, fixture) | 0.90 / 0.85 |" in readme_row()
     for demos, success in ((64, 0.5), (512, 0.875)):
@@ -635,7 +648,7 @@ def speed_root(tmp_path: Path) -> Path:
 
 
 def test_speed_page_plots_the_named_pairs_curves(speed_root, capsys):
-    assert main(["results", "training-speed", "--root", str(speed_root)]) == 0
+    assert main(["training-speed", "--root", str(speed_root)]) == 0
     spec = tomllib.loads((speed_root / "pages" / "training-speed.toml").read_text())
     drawn = plots.drawn_from((speed_root / "training-speed.png").read_bytes())
     pairs = {s["id"]: s for s in spec["source"]}
@@ -649,7 +662,8 @@ def test_speed_page_plots_the_named_pairs_curves(speed_root, capsys):
 def test_speed_page_plot_of_an_unknown_pair_is_a_one_line_error(speed_root, capsys):
     toml = speed_root / "pages" / "training-speed.toml"
     toml.write_text(re.sub(r'^plot = \[.*\]$', 'plot = ["nope"]', toml.read_text(), flags=re.M))
-    one_line_error(capsys, ["results", "training-speed", "--root", speed_root], "training-speed.toml: plot names nope")
+    one_line_error(capsys, ["training-speed", "--root", speed_root], "training-speed.toml: plot names nope",
+                   main=main)
     assert not (speed_root / "training-speed.md").exists()
 
 
@@ -661,7 +675,7 @@ def test_speed_page_says_which_runs_validate_on_the_training_size_sample(speed_r
     name = list(kept["runs"])[-1]
     kept["runs"][name]["config"]["train"]["val_points"] = "sampled"
     path.write_text(json.dumps(kept))
-    assert main(["results", "training-speed", "--root", str(speed_root)]) == 0
+    assert main(["training-speed", "--root", str(speed_root)]) == 0
     caption = next(line for line in (speed_root / "training-speed.md").read_text().splitlines()
                    if line.startswith(f"**{pair['label']}**"))
     assert f"; {name}: the network's input a farthest-point sample of its training size" in caption

@@ -5,9 +5,9 @@ import tomllib
 
 import pytest
 
-from tax3d import table
+from lab.results import table
+from lab.results.build import ROOT
 from tax3d.errors import UsageError
-from tax3d.results import ROOT
 
 
 def row(variant: str, success: float, episodes: int = 40) -> dict:
@@ -161,7 +161,7 @@ def test_multimodal_goals_beside_the_papers_coverage_and_precision(tmp_path):
 
 
 def test_a_page_reads_a_rows_best_and_last_validation(tmp_path):
-    from tax3d import kept
+    from lab.results import kept
 
     r = row("cd", 1.0)
     r["validations"] = [{"step": 10, "val_rmse": 0.3}, {"step": 20, "val_rmse": 0.5}, {"step": 30, "val_rmse": 0.45}]

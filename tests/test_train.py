@@ -107,7 +107,7 @@ def test_outputs_and_config(tmp_path, demos):
     state = torch.load(out / "last" / train.STATE_NAME, weights_only=True)
     assert state["step"] == 6
     # the kept JSON: every validation and the last step, readable as a validation curve
-    from tax3d import kept
+    from lab.results import kept
 
     summary = kept.load(out / "summary.json", ("train-log",))
     assert [p["step"] for p in summary["points"]] == [3, 6] and summary["records"][-1]["step"] == 6

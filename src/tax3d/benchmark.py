@@ -17,13 +17,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
-from tax3d import ledger, provenance
+from tax3d import kept, ledger, provenance
 from tax3d.atomic import write_json, write_text
 from tax3d.config import PresetName
 from tax3d.errors import UsageError
 from tax3d.digest import demos_digest
 from tax3d.options import NonNegative, OutputFolder, Positive
-from tax3d.table import ROW_KIND, ROW_VERSION
 
 FIXED_GOALS = {"floor": "mean", "ceiling": "demo"}  # row: `tax3d eval --goal` (no network, nothing trained)
 REGRESSION = ("rd", "rp")  # the paper runs them on the multimodal task alone
@@ -246,18 +245,17 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
     config = None if checkpoint is None else json.loads((checkpoint / "config.json").read_text())
     preset = (None if checkpoint is None else preset_of(args) if variant != "dp3"
               else "paper" if args.preset == "paper" else "cpu")
-    row = {"kind": ROW_KIND, "version": ROW_VERSION, "task": args.task, "variant": variant,
-           "preset": preset, "minutes": args.minutes, "num_train": args.num_train,
-           "weights": None if checkpoint is None else checkpoint.name,
-           "weights_chosen_on": ("nothing: a fixed goal" if checkpoint is None
-                                 else "val" if checkpoint.name == "best" else "last step"),
-           "weights_sha256": summary["weights_sha256"], "validations": validations, "config": config,
-           "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
-                    "scorings": (row or {}).get("test", {}).get("scorings", 0) + 1},
-           "trainings": (row or {}).get("trainings", 1) + (row is not None and args.retrain),
-           "splits": summary["splits"], "data_sha256": digests,
-           "command": command(), "machine": summary["machine"],
-           "date": summary["date"]}
+    row = kept.stamp("table-row", 1, {
+        "task": args.task, "variant": variant, "preset": preset, "minutes": args.minutes, "num_train": args.num_train,
+        "weights": None if checkpoint is None else checkpoint.name,
+        "weights_chosen_on": ("nothing: a fixed goal" if checkpoint is None
+                              else "val" if checkpoint.name == "best" else "last step"),
+        "weights_sha256": summary["weights_sha256"], "validations": validations, "config": config,
+        "test": {"first_index": args.first_index, "episodes": args.episodes, "samples": args.samples,
+                 "scorings": (row or {}).get("test", {}).get("scorings", 0) + 1},
+        "trainings": (row or {}).get("trainings", 1) + (row is not None and args.retrain),
+        "splits": summary["splits"], "data_sha256": digests,
+        "command": command(), "machine": summary["machine"], "date": summary["date"]})
     write_json(args.out / variant / "row.json", row)
     if args.keep is not None:
         write_json(args.keep / f"{variant}.json", row)

@@ -20,7 +20,6 @@ COMMANDS = {
     "eval": ("tax3d.evaluate", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
     "benchmark": ("tax3d.benchmark", "generate, train and evaluate a task for a list of variants, resumable"),
     "demo": ("tax3d.demo", "the main job on the embedded default"),
-    "results": ("tax3d.results", "build the result pages of docs/results/ from their declarations, or --check them"),
 }
 
 
@@ -32,8 +31,6 @@ def _usage() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import tyro
-
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv:
         print(_usage(), file=sys.stderr)
@@ -47,29 +44,37 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     module = importlib.import_module(COMMANDS[name][0])
     provenance.running(argv)
-    warnings.formatwarning = lambda message, category, *_: f"tax3d {name}: warning: {message}\n"
     try:
-        parsed = tyro.cli(options.described(module.Args), args=rest, prog=f"tax3d {name}",
-                          description=COMMANDS[name][1])
+        return run_command(f"tax3d {name}", module, COMMANDS[name][1], rest)
+    finally:
+        provenance.running(None)
+
+
+def run_command(prog: str, module, description: str, argv: list[str]) -> int:
+    """Parse `argv` into the module's `Args` and run it: bad input ends in one line and exit code 2, a failure
+    partway in one line and exit code 1."""
+    import tyro
+
+    warnings.formatwarning = lambda message, category, *_: f"{prog}: warning: {message}\n"
+    try:
+        parsed = tyro.cli(options.described(module.Args), args=argv, prog=prog, description=description)
         args = options.parsed_as(module.Args, parsed)
         options.check(args)
         return int(module.run(args) or 0)
     except UsageError as err:
-        print(f"tax3d {name}: error: {err}", file=sys.stderr)
+        print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"tax3d {name}: interrupted", file=sys.stderr)
+        print(f"{prog}: interrupted", file=sys.stderr)
         return 130
     except OSError as err:  # a full disk, a folder deleted underneath: the sentence of tax3d.atomic.WriteError
-        print(f"tax3d {name}: error: {os_failure(err)}", file=sys.stderr)
+        print(f"{prog}: error: {os_failure(err)}", file=sys.stderr)
         return 1
     except Exception as err:
         if os.environ.get(TRACEBACK):
             raise
-        print(f"tax3d {name}: failed: {failure(err)} ({TRACEBACK}=1 shows where)", file=sys.stderr)
+        print(f"{prog}: failed: {failure(err)} ({TRACEBACK}=1 shows where)", file=sys.stderr)
         return 1
-    finally:
-        provenance.running(None)
 
 
 TRACEBACK = "TAX3D_TRACEBACK"

@@ -461,7 +461,7 @@ def _write_outputs(args: Args, summary: dict, results: list[dict]) -> None:
     path = args.out / "results.json"
     write_text(path, json.dumps({"summary": summary, "episodes": scalars}, indent=2, default=_plain))
     # the kept JSON of the evaluation: its summary without the episodes
-    write_text(args.out / "summary.json", json.dumps(kept.stamp("eval", {"summary": summary}), indent=1,
+    write_text(args.out / "summary.json", json.dumps(kept.stamp("eval", 1, {"summary": summary}), indent=1,
                                                      default=_plain) + "\n")
     if args.report:
         from tax3d.report import write_report

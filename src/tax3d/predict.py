@@ -104,8 +104,8 @@ def run(args: Args) -> int:
         write_npz(Path(args.out), goals, files, errors)
         print(f"predictions: {args.out}", file=sys.stderr)
     if args.summary:
-        record = kept.stamp("predict", {**provenance.made("tax3d.predict"), "checkpoint": str(args.checkpoint),
-                                        **summary})
+        record = kept.stamp("predict", 1, {**provenance.made("tax3d.predict"), "checkpoint": str(args.checkpoint),
+                                           **summary})
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
         write_text(args.summary, json.dumps(record, indent=1) + "\n")
         print(f"summary: {args.summary}", file=sys.stderr)

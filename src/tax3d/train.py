@@ -563,7 +563,8 @@ def write_summary(out: Path, config: cfg.Config) -> None:
     kept_records = [r for r in records if "plan" in r or "val_rmse" in r]
     if records and (not kept_records or kept_records[-1] is not records[-1]):
         kept_records.append(records[-1])
-    write_json(out / "summary.json", kept.stamp("train-log", {
+    # version 2: the records of version 1 with the run, what it validated on, the machine and the date
+    write_json(out / "summary.json", kept.stamp("train-log", 2, {
         **provenance.made("tax3d.train"),
         "run": str(out), "variant": config.model.variant, "val": list(config.data.val),
         "val_demos": config.train.val_demos, "val_samples": config.train.val_samples, "steps": config.train.steps,

@@ -4,8 +4,8 @@ samplers, large clouds) and `run` (its training), by id."""
 
 from __future__ import annotations
 
-from tax3d.pages.measurement import MeasurementPage
-from tax3d.pages.page import provenance
+from lab.results.pages.measurement import MeasurementPage
+from lab.results.pages.page import provenance
 
 
 class OfficialPage(MeasurementPage):

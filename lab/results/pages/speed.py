@@ -6,9 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from tax3d.errors import UsageError
-from tax3d.pages import plots
-from tax3d.pages.measurement import MeasurementPage
-from tax3d.pages.page import fold, provenance
+from lab.results.pages import plots
+from lab.results.pages.measurement import MeasurementPage
+from lab.results.pages.page import fold, provenance
 
 
 class SpeedPage(MeasurementPage):

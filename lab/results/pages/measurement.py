@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tax3d.pages.page import Page
+from lab.results.pages.page import Page
 
 
 class MeasurementPage(Page):

@@ -3,8 +3,8 @@ success rates, simulation speed; sources `table = "fidelity"`, `"expert"` or `"s
 
 from __future__ import annotations
 
-from tax3d.pages.measurement import MeasurementPage
-from tax3d.pages.page import fold, provenance
+from lab.results.pages.measurement import MeasurementPage
+from lab.results.pages.page import fold, provenance
 
 
 class SimPage(MeasurementPage):

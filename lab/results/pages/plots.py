@@ -1,5 +1,5 @@
 """The plots of the result pages, each drawn from a small JSON of what it shows, which the PNG carries in a text chunk
-(`Source`): `tax3d results --check` compares a plot by that, not by its pixels, which change with matplotlib's
+(`Source`): `python -m lab.results --check` compares a plot by that, not by its pixels, which change with matplotlib's
 version."""
 
 from __future__ import annotations

@@ -13,10 +13,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from tax3d import kept
-from tax3d.commands import shown
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
+from lab.results import kept
+from lab.results.commands import shown
 
 SPLITS = ("train", "unseen", "ood")
 ALIASES = {"success": "success_rate"}

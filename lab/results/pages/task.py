@@ -1,12 +1,12 @@
 """A task's page (docs/results/TASK.md): the verdict, the table of its headline rows beside the paper's, their plot,
 then every row, the ablations, coverage and precision, validation curves, the notes and every command.
 
-Beside what every declaration holds (tax3d.pages.page), a task page's holds `task` (its key in paper.toml),
+Beside what every declaration holds (lab.results.pages.page), a task page's holds `task` (its key in paper.toml),
 `definitions`, `headline` (at most 8 row ids or `paper:ROW`), optional `readme`, `setup`, `sets`, `sets_note`,
 `spread_note`, and arrays of tables `row` (id, label, summary: a kept evaluation, optional paper, group =
 "ablation", made, config, shipped), `curve` (id, label, summary: a kept validation curve or training log) and `draw`
 (demos, and the digests of train, val, unseen and ood: the draw of the demonstrations that table of the protocol
-names, tax3d.table.check_draw). Where `tax3d benchmark --keep` has kept rows for the task
+names, lab.results.table.check_draw). Where `tax3d benchmark --keep` has kept rows for the task
 (docs/results/table/TASK/), the paper's table under that one protocol comes first, each row's scorings from the
 ledger (docs/results/table/ledger.jsonl).
 """
@@ -15,13 +15,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tax3d import ledger, table
-from tax3d.commands import EARLIER, shown
+from tax3d import ledger
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
-from tax3d.pages import plots
-from tax3d.pages.card import shipped_rows
-from tax3d.pages.page import SPLITS, Page, cell, fold
+from lab.results import table
+from lab.results.commands import EARLIER, shown
+from lab.results.pages import plots
+from lab.results.pages.card import shipped_rows
+from lab.results.pages.page import SPLITS, Page, cell, fold
 
 VARIANT_NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP"}
 

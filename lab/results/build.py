@@ -1,9 +1,10 @@
-"""`tax3d results`: build the result pages of docs/results/ from their declarations and the kept JSON, or --check them.
+"""`python -m lab.results`: build the result pages of docs/results/ from their declarations and the kept JSON, or
+--check them.
 
 Each page is a TOML declaration in docs/results/pages/ whose `kind` (task when left out) picks its renderer below;
-the renderers live in tax3d.pages, one module per kind, and read kept JSON through tax3d.kept. The README's results
-table is built from the task pages, between `<!-- results -->` and `<!-- /results -->`. --check compares markdown
-byte for byte and a plot by the JSON it was drawn from (tax3d.pages.plots).
+the renderers live in lab.results.pages, one module per kind, and read kept JSON through lab.results.kept. The
+README's results table is built from the task pages, between `<!-- results -->` and `<!-- /results -->`. --check
+compares markdown byte for byte and a plot by the JSON it was drawn from (lab.results.pages.plots).
 """
 
 from __future__ import annotations
@@ -12,26 +13,29 @@ import sys
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
+from typing import Annotated, Optional
 
 import tyro
 
 from tax3d.atomic import write_bytes
+from tax3d.cli import run_command
 from tax3d.errors import UsageError
-from tax3d.pages import plots
-from tax3d.pages.card import CardsPage
-from tax3d.pages.official import OfficialPage
-from tax3d.pages.page import Page
-from tax3d.pages.paper_count import PaperCountPage
-from tax3d.pages.sim import SimPage
-from tax3d.pages.speed import SpeedPage
-from tax3d.pages.study import StudyPage
-from tax3d.pages.task import TaskPage, readme_table
+from lab.results.pages import plots
+from lab.results.pages.card import CardsPage
+from lab.results.pages.official import OfficialPage
+from lab.results.pages.page import Page
+from lab.results.pages.paper_count import PaperCountPage
+from lab.results.pages.sim import SimPage
+from lab.results.pages.speed import SpeedPage
+from lab.results.pages.study import StudyPage
+from lab.results.pages.task import TaskPage, readme_table
 
 ROOT = Path(__file__).resolve().parents[2]
 RENDERERS: dict[str, type[Page]] = {"task": TaskPage, "sim": SimPage, "official": OfficialPage, "speed": SpeedPage,
                                     "training": StudyPage, "cards": CardsPage, "paper-count": PaperCountPage}
 MARKERS = ("<!-- results -->", "<!-- /results -->")
+PROG = "python -m lab.results"
+DESCRIPTION = "build the result pages of docs/results/ from their declarations, or --check them"
 
 
 @dataclass
@@ -39,8 +43,8 @@ class Args:
     """Build the result pages of docs/results/ (and the README's results table, the model cards, docs/training.md's
     table) from docs/results/pages/*.toml."""
 
-    page: tyro.conf.Positional[Optional[str]] = None
-    """one page, by its name (e.g. hangbag); default: every page"""
+    pages: Annotated[tuple[str, ...], tyro.conf.Positional, tyro.conf.arg(metavar="[PAGE ...]")] = ()
+    """pages, by their names (e.g. hangbag); default: every page"""
     check: bool = False
     """build in memory and exit 1, naming each file that differs from the one on disk"""
     root: Optional[str] = None
@@ -63,21 +67,23 @@ def with_table(readme: str, table: str) -> str:
     return readme[:start] + "\n" + table + "\n" + readme[end:]
 
 
-def build(root: Path, only: str | None = None) -> dict[Path, bytes]:
-    """Every file the pages of `root` make (markdown, plots, model cards and the README's table), by path."""
+def build(root: Path, only: tuple[str, ...] = ()) -> dict[Path, bytes]:
+    """Every file the pages of `root` make (markdown, plots, model cards and the README's table), by path; those of
+    the pages named `only` where it names any."""
     paper = tomllib.loads((root / "paper.toml").read_text())
     files = sorted((root / "pages").glob("*.toml"))
     names = [f.stem for f in files]
-    if only is not None and only not in names:
-        raise UsageError(f"page {only!r}: expected one of {', '.join(names)}")
+    unknown = [name for name in only if name not in names]
+    if unknown:
+        raise UsageError(f"page {unknown[0]!r}: expected one of {', '.join(names)}")
     out, pages = {}, []
     for f in files:
-        if only in (None, f.stem):
+        if not only or f.stem in only:
             spec = declaration(f)
             pages.append(RENDERERS[spec.get("kind", "task")](f, root, paper, spec))
             out.update(pages[-1].files())
     readme = root.parent.parent / "README.md"
-    if only is None and readme.is_file() and MARKERS[0] in readme.read_text():
+    if not only and readme.is_file() and MARKERS[0] in readme.read_text():
         table = readme_table([p for p in pages if isinstance(p, TaskPage)])
         out[readme] = with_table(readme.read_text(), table).encode()
     return out
@@ -96,13 +102,19 @@ def run(args: Args) -> int:
     root = Path(args.root) if args.root else ROOT / "docs" / "results"
     if not (root / "paper.toml").is_file():
         raise UsageError(f"--root {root}: expected a results folder with paper.toml and pages/")
-    files = build(root, args.page)
+    files = build(root, args.pages)
     if args.check:
         stale = [p for p, data in files.items() if not same(p, data)]
         for p in stale:
-            print(f"tax3d results: {p} differs from what `tax3d results` builds", file=sys.stderr)
+            print(f"{PROG}: {p} differs from what `{PROG}` builds", file=sys.stderr)
         return 1 if stale else 0
     for path, data in files.items():
         write_bytes(path, data)
         print(path)
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m lab.results [PAGE ...] [--check] [--root FOLDER]`: bad input ends in one line, exit code 2."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    return run_command(PROG, sys.modules[__name__], DESCRIPTION, argv)

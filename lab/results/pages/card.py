@@ -14,12 +14,12 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from tax3d import kept
-from tax3d.commands import shown
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
-from tax3d.pages.page import SPLITS, Page, cell
-from tax3d.table import NAMES, PAPER_KEYS
+from lab.results import kept
+from lab.results.commands import shown
+from lab.results.pages.page import SPLITS, Page, cell
+from lab.results.table import NAMES, PAPER_KEYS
 
 
 CARDS = Path("pages") / "model-cards.toml"

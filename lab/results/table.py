@@ -15,11 +15,11 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
-from tax3d import kept
 from tax3d import ledger as ledger_lines
-from tax3d.metrics import rate, split_rate
+from tax3d.errors import UsageError
+from tax3d.metrics import rate, split_rate, success_interval
+from lab.results import kept
 
-ROW_KIND, ROW_VERSION = "table-row", 1
 PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": "CD-NAC", "cp_nac": "CP-NAC",
               "sd": "SD", "sp": "SP", "rd": "RD", "rp": "RP", "dp3": "DP3", "floor": "floor", "ceiling": "ceiling"}
 ORDER = ("CD", "CP", "CD-W", "CP-W", "CD-NAC", "CP-NAC", "SD", "SP", "RD", "RP", "DP3", "floor", "ceiling")
@@ -35,7 +35,7 @@ def load_rows(folder: Path) -> dict[int, dict[str, dict]]:
     """{training demos: {paper key: row}} of a task's kept rows; a file of another kind or version is an error."""
     rows: dict[int, dict[str, dict]] = {}
     for path in sorted(folder.glob("*/*.json")) if folder.is_dir() else []:
-        row = kept.read(path, (ROW_KIND,))
+        row = kept.read(path, ("table-row",))
         rows.setdefault(int(path.parent.name), {})[PAPER_KEYS[row["variant"]]] = row
     return rows
 
@@ -151,8 +151,6 @@ class Protocol:
 
 def check_draw(where: str, demos: int, draw: dict, kept: dict[str, dict]) -> dict:
     """A table's draw as its page names it: the four folders' digests, each one that a row of the table records."""
-    from tax3d.errors import UsageError
-
     if sorted(draw) != sorted(("demos", *DRAW_FOLDERS)):
         raise UsageError(f"{where}: draw of {demos} demos names {', '.join(sorted(draw))}; expected demos and the "
                          f"digests of {', '.join(DRAW_FOLDERS)}")
@@ -167,7 +165,7 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]], lines: li
              draws: dict[int, dict] | None = None) -> list[str]:
     """One table per training-set size: each of the paper's rows (at smaller sizes, those we ran), its success and
     RMSE beside ours, and how it departs from the protocol of the table; `lines` the ledger, `draws` the draw each
-    table names (tax3d.table.check_draw)."""
+    table names (lab.results.table.check_draw)."""
     paper_rows = paper.get("rows", {})
     keys = [k for k in ORDER if k in paper_rows or k in FIXED]
     out = []
@@ -261,8 +259,6 @@ def _check(kept: dict, paper_rows: dict, claim: dict, worse: str, than: str | No
 def paper_as_rows(paper: dict) -> dict[str, dict]:
     """The paper's own rows in the shape of ours, each success with the Wilson interval of its episode count
     (`demos`), so that each claim's test can be run on the numbers it was drawn from."""
-    from tax3d.metrics import success_interval
-
     counts, rows = paper.get("demos", []), {}
     for key, theirs in paper.get("rows", {}).items():
         splits = {}

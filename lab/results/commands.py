@@ -18,14 +18,16 @@ EARLIER = "recorded with an earlier version"
 
 
 SEPARATORS = ("&&", "||", ";", "|")
-# scripts that kept commands name, since moved, replaced or removed: what to run today (None: nothing)
+# scripts and commands that kept command lines name, since moved, replaced or removed: what to run today (None:
+# nothing)
 MOVED = {
     "scripts/oracle_policy.py": "`tax3d eval --goal demo` or `--goal mean` with the same options",
     "scripts/sampler_check.py": "`python benchmarks/samplers.py`, one checkpoint at a time",
     "scripts/keep_summary.py": "`tax3d eval`, which writes OUT/summary.json",
     "scripts/keep_log.py": "`tax3d train`, which writes OUT/summary.json",
     "scripts/val_curve.py": "`tax3d train`, which writes OUT/summary.json",
-    "scripts/model_card.py": "`tax3d results`, from docs/results/pages/model-cards.toml",
+    "scripts/model_card.py": "`python -m lab.results model-cards`, from docs/results/pages/model-cards.toml",
+    "tax3d results": "`python -m lab.results` with the same options",
     "scripts/precision_parts.py": None,
     **{f"scripts/{name}.py": f"`python benchmarks/{name}.py`" for name in (
         "expert_rates", "fidelity", "goal_spread", "mode_spread", "official_report", "paper_budget_run",
@@ -81,7 +83,7 @@ def _parses(name: str, argv: list[str]) -> bool:
 
 
 def moved(command: str) -> str | None:
-    """The script a command line names that has since moved or gone, or None."""
+    """What a command line names (a script, a command) that has since moved or gone, or None."""
     return next((script for script in MOVED if script in command), None)
 
 

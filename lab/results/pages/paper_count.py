@@ -14,12 +14,12 @@ import os
 from pathlib import Path
 
 from tax3d import config as cfg
-from tax3d import kept
-from tax3d.commands import shown
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
-from tax3d.pages import plots
-from tax3d.pages.page import Page, fold
+from lab.results import kept
+from lab.results.commands import shown
+from lab.results.pages import plots
+from lab.results.pages.page import Page, fold
 
 METRIC = "val_rmse_mean"  # one sample a demo, as the policy acts
 
@@ -101,7 +101,7 @@ class PaperCountPage(Page):
                       f"`{data['digests']['train'][:8]}`), validated on the first {data['val_demos']} of "
                       f"`{data['val']}` (`{data['digests']['val'][:8]}`), one core an arm, the arms side by side: "
                       f"{shown(data['command'])} on {data['machine']}, {data['date']}; built by "
-                      f"`tax3d results {self.name}`.", "",
+                      f"`python -m lab.results {self.name}`.", "",
                       *fold("The command of each arm", [f"- {name}: {shown(arm['command'])}"
                                                         for name, arm in data["arms"].items()])]
         lines += self.details()

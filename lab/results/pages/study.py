@@ -15,11 +15,11 @@ import os
 import re
 from pathlib import Path
 
-from tax3d import kept
-from tax3d.commands import shown
 from tax3d.errors import UsageError
-from tax3d.pages import plots
-from tax3d.pages.page import Page, fold
+from lab.results import kept
+from lab.results.commands import shown
+from lab.results.pages import plots
+from lab.results.pages.page import Page, fold
 
 STUDY = ("<!-- study -->", "<!-- /study -->")
 DIFFERENCES = ("<!-- differences -->", "<!-- /differences -->")
@@ -106,7 +106,8 @@ class StudyPage(Page):
             + f" on {machine}, {date}"
             for (machine, date), same in itertools.groupby(self.studies, lambda s: (s[1]["machine"], s[1]["date"])))
         lines = [self.verdict(), "", f"![validation RMSE against minutes]({link})", "",
-                 f"Measured by `benchmarks/time_to_quality.py`: {measured}; built by `tax3d results {self.name}`.", "",
+                 f"Measured by `benchmarks/time_to_quality.py`: {measured}; built by "
+                 f"`python -m lab.results {self.name}`.", "",
                  *self.notes(), *fold(f"Every run of the {len(self.studies)} studies", self.table()),
                  *self.details("The study log: what each study found"), *fold("The command of each run", commands)]
         return "\n".join(lines).rstrip()

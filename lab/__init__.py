@@ -1,0 +1,3 @@
+"""The repository's lab, beside the installed package (src/tax3d) and not installed with it: the machinery that
+builds the result pages of docs/results/ from kept JSON (lab.results). Run from the repository's root, e.g.
+`python -m lab.results --check`."""

@@ -1,0 +1,5 @@
+import sys
+
+from lab.results.build import main
+
+sys.exit(main())
