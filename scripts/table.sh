@@ -5,7 +5,7 @@
 #   bash scripts/table.sh hangbag ...      # the named tasks' rows only, in that order
 #   bash scripts/table.sh --dry-run [...]  # only print their commands
 #
-# Each row is one `tax3d benchmark` command (60 minutes of training on one core, its weights chosen on val, its
+# Each row is one `tax3d table` command (60 minutes of training on one core, its weights chosen on val, its
 # test episodes scored once); a killed row resumes from runs/table/.../last when run again. First the demonstrations
 # of every named task's missing rows, made with both cores while nothing trains (data/<folder>, skipped where
 # present; a task whose demonstrations fail waits for the next start), then all those rows in one stream, two at a
@@ -35,13 +35,13 @@ missing() {  # task num: the task's rows without kept JSON, one a line
   done
 }
 
-benchmark() {  # task num folder row: the row's command, as its kept JSON records it
-  echo "benchmark --task $1 --variants $4 --num-train $2 --minutes $MINUTES --data data/$3 --out runs/table/$1-$2" \
+table() {  # task num folder row: the row's command, as its kept JSON records it (rows kept before: `tax3d benchmark`)
+  echo "table --task $1 --variants $4 --num-train $2 --minutes $MINUTES --data data/$3 --out runs/table/$1-$2" \
     "--keep docs/results/table/$1/$2 --workers 1"
 }
 
 data() {  # task num folder rows: the demonstrations of the task's rows (comma-separated), with both cores
-  "$TAX3D" benchmark --task "$1" --variants "$4" --num-train "$2" --data "data/$3" --out "runs/table/$1-$2" \
+  "$TAX3D" table --task "$1" --variants "$4" --num-train "$2" --data "data/$3" --out "runs/table/$1-$2" \
     --workers 2 --data-only
 }
 
@@ -49,7 +49,7 @@ row() {  # task num folder row
   local log=runs/logs/$1-$2-$4.log
   echo "$(date -u +%FT%TZ) start $*"
   # shellcheck disable=SC2046  # the command's words hold no spaces
-  "$TAX3D" $(benchmark "$@") >> "$log" 2>&1 && echo "$(date -u +%FT%TZ) done $*" \
+  "$TAX3D" $(table "$@") >> "$log" 2>&1 && echo "$(date -u +%FT%TZ) done $*" \
     || echo "$(date -u +%FT%TZ) FAILED $* (see $log)"
 }
 
@@ -67,7 +67,7 @@ DRY=; [ "${1:-}" = --dry-run ] && { DRY=1; shift; }
 TASKS=$(tasks "$@") || exit 2
 if [ -n "$DRY" ]; then
   echo "$TASKS" | while read -r task num folder; do
-    missing "$task" "$num" | while read -r r; do echo "tax3d $(benchmark "$task" "$num" "$folder" "$r")"; done
+    missing "$task" "$num" | while read -r r; do echo "tax3d $(table "$task" "$num" "$folder" "$r")"; done
   done
   exit 0
 fi
@@ -75,7 +75,7 @@ mkdir -p runs/logs data
 exec 9> runs/.table.lock
 flock -n 9 || { echo "scripts/table.sh: another queue holds runs/.table.lock; expected one at a time" >&2; exit 2; }
 export TAX3D MINUTES
-export -f row benchmark
+export -f row table
 READY=$(echo "$TASKS" | while read -r task num folder; do  # the tasks whose demonstrations are all made
   rows=$(missing "$task" "$num" | paste -sd, -)
   [ -n "$rows" ] || continue

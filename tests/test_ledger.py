@@ -15,7 +15,7 @@ def line(row: str, won: int) -> dict:
     summary = {"date": "2026-12-06", "weights_sha256": "ab" * 32,
                "splits": {"unseen": {"episodes": 40, "success_rate": won / 40}, "ood": {"episodes": 40,
                                                                                       "success_rate": 0.0}}}
-    return ledger.scoring("hangproccloth-simple", 16, row, summary, None, 100, "tax3d benchmark ...")
+    return ledger.scoring("hangproccloth-simple", 16, row, summary, None, 100, "tax3d table ...")
 
 
 def test_lines_are_appended_with_the_hash_of_what_was_before(tmp_path):

@@ -1,5 +1,6 @@
 """The training command beside a shipped checkpoint (on its result page and in its model card, a `tax3d train` or the
-`tax3d benchmark` of a table row) makes that checkpoint's configuration with today's presets: a preset that changed since would otherwise make another model."""
+`tax3d table` of a table row) makes that checkpoint's configuration with today's presets: a preset that changed since
+would otherwise make another model."""
 
 from __future__ import annotations
 
@@ -13,8 +14,8 @@ from pathlib import Path
 import pytest
 import tyro
 
-from tax3d import benchmark
 from tax3d import config as cfg
+from tax3d import table
 from lab.results.commands import parses
 from tax3d.train import config_of_command, resolve_config
 
@@ -50,21 +51,21 @@ def kept_commands() -> list:
                 found.append(pytest.param(kept, row["made"], id=f"{page.stem}:{row['id']}"))
     for card in sorted((ROOT / "checkpoints").glob("*/README.md")):
         for line in card.read_text().splitlines():
-            if line.startswith(("tax3d train", "tax3d benchmark")):
+            if line.startswith(("tax3d train", "tax3d table")):
                 found.append(pytest.param(card.parent / "config.json", line, id=card.parent.name))
     return found
 
 
 def made_config(command: str, kept: cfg.Config) -> cfg.Config:
-    """The configuration `tax3d train ...` starts from, or the one `tax3d benchmark ...` trains its row with (its
-    training demonstrations read from KEPT: the benchmark takes the first NUM of a folder that CI does not have)."""
+    """The configuration `tax3d train ...` starts from, or the one `tax3d table ...` trains its row with (its
+    training demonstrations read from KEPT: the table takes the first NUM of a folder that CI does not have)."""
     argv = shlex.split(command.split("#")[0])
-    if "benchmark" not in argv:
+    if "table" not in argv:
         return config_of_command(argv[argv.index("train") + 1:])
-    args = tyro.cli(benchmark.Args, args=argv[argv.index("benchmark") + 1:], prog="tax3d benchmark")
+    args = tyro.cli(table.Args, args=argv[argv.index("table") + 1:], prog="tax3d table")
     data = args.data if args.data is not None else args.out / "data"
     (variant,) = args.variants.split(",")
-    train_args = benchmark.train_args(args, variant, Path("."), tuple(kept.data.train), data / "val")
+    train_args = table.train_args(args, variant, Path("."), tuple(kept.data.train), data / "val")
     return resolve_config(train_args, Path("."), None)
 
 

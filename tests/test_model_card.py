@@ -184,7 +184,8 @@ def test_model_card_of_a_table_row_states_its_protocol_and_one_command(tmp_path,
     assert "| unseen | 40 | 0.95 (0.83-0.99) | 0.90 | 0.340 | 0.405 | 0.240 | 0.340 |" in card
     assert "| ood | 40 | 0.50 (0.35-0.65) | 0.85 |" in card
     assert "weights chosen on `val`: these are the run's best weights, validation RMSE 0.300 at step 20" in card
-    assert "```bash\ntax3d benchmark --task hangproccloth-unimodal --variants cd" in card
+    assert "```bash\ntax3d table --task hangproccloth-unimodal --variants cd" in card
+    assert "The row records it under the command's earlier name: `tax3d benchmark --task hangproccloth-unimodal" in card
     assert "On the same episodes" not in card  # no floor or ceiling scored yet
     assert main(["--root", str(root), "--check"]) == 0
 

@@ -21,7 +21,7 @@ TINY = {
              "--data.num-action-points 32 --data.num-anchor-points 32 --train.num-workers 0",
     "predict": "--steps 2",
     "eval": "--episodes 1 --workers 1 --steps 2 --no-report",
-    "benchmark": "--num-train 1 --num-val 1 --episodes 1 --steps 2 --workers 1",
+    "table": "--num-train 1 --num-val 1 --episodes 1 --steps 2 --workers 1",
     "train-dp3": "--train.steps 2 --train.batch-size 2",
 }
 
@@ -77,12 +77,12 @@ def statements(block: str) -> list[str]:
 # side under `make test`): each statement goes to the part of the first command it names.
 PARTS = {
     "model": ("generate --task hangproccloth-simple --split $split", "train ", "predict", "eval"),
-    "table": ("benchmark",),
+    "table": ("table",),
     "dp3": ("--trajectories", "train-dp3"),
 }
 CHECKS = {
     "model": "test -f runs/cd/pred.json && test -d runs/cd/best && test -f out/eval/results.json\n",
-    "table": "test -f runs/benchmark/results.md\n",
+    "table": "test -f runs/table/results.md\n",
     "dp3": "test -d runs/dp3/last\n",
 }
 

@@ -1,5 +1,6 @@
-"""Whether a kept command line still runs as written today: its `tax3d` options parse and the script it names is
-still there (a result page marks one that does not, with what to run today where there is something)."""
+"""Whether a kept command line still runs as written today: its `tax3d` options parse and the commands and scripts it
+names are still there under the same names (a result page marks one that does not, with what to run today where there
+is something)."""
 
 from __future__ import annotations
 
@@ -7,10 +8,12 @@ import contextlib
 import functools
 import importlib
 import io
+import re
 import shlex
 
 import tyro
 
+from tax3d import cli
 from tax3d.cli import COMMANDS
 from tax3d.errors import UsageError
 
@@ -18,8 +21,7 @@ EARLIER = "recorded with an earlier version"
 
 
 SEPARATORS = ("&&", "||", ";", "|")
-# scripts and commands that kept command lines name, since moved, replaced or removed: what to run today (None:
-# nothing)
+# scripts that kept command lines name, since replaced or removed: what to run today (None: nothing)
 MOVED = {
     "scripts/oracle_policy.py": "`tax3d eval --goal demo` or `--goal mean` with the same options",
     "scripts/sampler_check.py": "`python benchmarks/samplers.py`, one checkpoint at a time",
@@ -27,11 +29,15 @@ MOVED = {
     "scripts/keep_log.py": "`tax3d train`, which writes OUT/summary.json",
     "scripts/val_curve.py": "`tax3d train`, which writes OUT/summary.json",
     "scripts/model_card.py": "`python -m lab.results model-cards`, from docs/results/pages/model-cards.toml",
-    "tax3d results": "`python -m lab.results` with the same options",
     "scripts/precision_parts.py": None,
     **{f"scripts/{name}.py": f"`python benchmarks/{name}.py`" for name in (
         "expert_rates", "fidelity", "goal_spread", "mode_spread", "official_report", "paper_budget_run",
         "success_by_rmse")},
+}
+# commands that kept command lines name, since renamed or moved: the command that runs them today, with the same options
+RENAMED = {
+    **{f"{prefix} {old}": f"{prefix} {new}" for old, new in cli.RENAMED.items() for prefix in ("tax3d", "tax3d.cli")},
+    "tax3d results": "python -m lab.results",
 }
 
 
@@ -83,8 +89,20 @@ def _parses(name: str, argv: list[str]) -> bool:
 
 
 def moved(command: str) -> str | None:
-    """What a command line names (a script, a command) that has since moved or gone, or None."""
+    """The script a command line names that has since been replaced or removed, or None."""
     return next((script for script in MOVED if script in command), None)
+
+
+def renamed(command: str) -> str:
+    """The command line with each command it names that has since been renamed or moved under its name today."""
+    for old, new in RENAMED.items():
+        command = _whole(old).sub(new, command)
+    return command
+
+
+def _whole(name: str) -> re.Pattern:
+    """A command's name as whole words of a command line."""
+    return re.compile(rf"\b{re.escape(name)}\b")
 
 
 def shown(command: str) -> str:
@@ -94,4 +112,8 @@ def shown(command: str) -> str:
     if script is not None:
         today = MOVED[script]
         return f"`{command}` ({EARLIER}" + (f"; today: {today})" if today else "; the script has since been removed)")
-    return f"`{command}`" + ("" if parses(command) else f" ({EARLIER})")
+    now = renamed(command)
+    if now == command:
+        return f"`{command}`" + ("" if parses(command) else f" ({EARLIER})")
+    names = " and ".join(f"`{new}`" for old, new in RENAMED.items() if _whole(old).search(command))
+    return f"`{command}` ({EARLIER}; today: {names}" + (" with the same options)" if parses(now) else ")")

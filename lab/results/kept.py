@@ -20,7 +20,7 @@ KINDS: dict[str, tuple[tuple[int, ...], str]] = {
     "fixed-goal": ((1,), "an earlier fixed-goal policy, today `tax3d eval --goal demo` or `--goal mean`"),
     "train-run": ((1,), "a training run's figures, transcribed from its log"),
     "predict": ((1,), "`tax3d predict --summary`"),
-    "table-row": ((1,), "`tax3d benchmark --keep`"),
+    "table-row": ((1,), "`tax3d table --keep`"),
     "study": ((1,), "benchmarks/time_to_quality.py"),
     "paper-count": ((1,), "benchmarks/paper_count.py"),
     "samplers": ((1,), "benchmarks/samplers.py"),

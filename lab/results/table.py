@@ -1,4 +1,4 @@
-"""The paper's table of a task beside ours, row by row, from the rows that `tax3d benchmark --keep` writes.
+"""The paper's table of a task beside ours, row by row, from the rows that `tax3d table --keep` writes.
 
 Rows are kept as docs/results/table/TASK/DEMOS/VARIANT.json (kind "table-row"), every scoring of their test
 episodes in docs/results/table/ledger.jsonl (tax3d.ledger). The line above each table states its protocol from the
@@ -19,6 +19,7 @@ from tax3d import ledger as ledger_lines
 from tax3d.errors import UsageError
 from tax3d.metrics import rate, split_rate, success_interval
 from lab.results import kept
+from lab.results.commands import shown
 
 PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": "CD-NAC", "cp_nac": "CP-NAC",
               "sd": "SD", "sp": "SP", "rd": "RD", "rp": "RP", "dp3": "DP3", "floor": "floor", "ceiling": "ceiling"}
@@ -358,7 +359,7 @@ def commands(rows: dict[int, dict[str, dict]], ledger: list[dict] = ()) -> list[
             episodes = ("" if digests is None else
                         f" (unseen `{digests['unseen'][:12]}`, ood `{digests['ood'][:12]}`)")
             scored = len(ledger_lines.of_row(list(ledger), row["task"], demos, row["variant"]))
-            lines.append(f"- {NAMES.get(key, key)}, {demos} demos: `{row['command']}` on {row['machine']}, "
+            lines.append(f"- {NAMES.get(key, key)}, {demos} demos: {shown(row['command'])} on {row['machine']}, "
                          f"{row['date']}; {weights}; test episodes{episodes} scored {times(scored)} (the ledger)"
                          + (f"; trained {row['trainings']} times, the earlier weights set aside by "
                                       "`--retrain` after a fix" if row.get("trainings", 1) > 1 else ""))

@@ -18,9 +18,10 @@ COMMANDS = {
     "predict": ("tax3d.predict", "predict goal clouds for demonstration files with a checkpoint"),
     "cloud": ("tax3d.camera", "turn a depth image, its mask, intrinsics and camera pose into a world-frame cloud"),
     "eval": ("tax3d.evaluate", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
-    "benchmark": ("tax3d.benchmark", "generate, train and evaluate a task for a list of variants, resumable"),
+    "table": ("tax3d.table", "the paper's table of a task: generate, train and score each row, resumable"),
     "demo": ("tax3d.demo", "the main job on the embedded default"),
 }
+RENAMED = {"benchmark": "table"}  # an earlier name of a command: its name today
 
 
 def _usage() -> str:
@@ -39,6 +40,10 @@ def main(argv: list[str] | None = None) -> int:
         print(_usage())
         return 0
     name, rest = argv[0], argv[1:]
+    if name in RENAMED:
+        print(f"tax3d: error: `tax3d {name}` is renamed; use `tax3d {RENAMED[name]}` with the same options",
+              file=sys.stderr)
+        return 2
     if name not in COMMANDS:
         print(f"tax3d: error: unknown command {name!r}; expected one of {', '.join(COMMANDS)}", file=sys.stderr)
         return 2

@@ -391,7 +391,7 @@ def format_table(table: dict) -> str:
 
 def evaluate(args: Args, progress: bool = True, record: bool = True) -> dict:
     """Run the episodes and write the outputs; a scoring of test episodes goes in the ledger first (tax3d.ledger),
-    unless `record` is False (`tax3d benchmark` writes its own line, with the row)."""
+    unless `record` is False (`tax3d table` writes its own line, with the row)."""
     from tax3d.sim.tasks import get_task
 
     get_task(args.task)

@@ -1,6 +1,6 @@
 """The ledger of test scorings: one JSON line for every scoring of the table's test episodes, kept in the repository.
 
-`tax3d benchmark` appends a line before it writes a row, and `tax3d eval` one when it scores test episodes (`unseen`
+`tax3d table` appends a line before it writes a row, and `tax3d eval` one when it scores test episodes (`unseen`
 or `ood` at the indices the table scores, tax3d.sim.tasks.TEST_FIRST_INDEX on): the date, task, training demos,
 row, weights sha, data digests, episodes and successes of each split. Deleting, training again or scoring again a row
 never removes a line, so the pages count a row's scorings and show its earlier scores from here.
@@ -43,7 +43,7 @@ def _lines(path: Path, text: str) -> list[dict]:
             line = json.loads(raw)
         except ValueError as err:
             raise UsageError(f"{path}: line {number} is not valid JSON ({err}); expected one JSON object a line, "
-                             f"as `tax3d benchmark` appends them") from None
+                             f"as `tax3d table` appends them") from None
         if not isinstance(line, dict) or line.get("before_sha256") != h.hexdigest():
             raise UsageError(f"{path}: line {number} does not follow the lines before it (its before_sha256 is "
                              f"not the sha256 of the ledger up to it); expected earlier lines unchanged: the ledger "

@@ -2,7 +2,7 @@
 config.json, its kept evaluation and training log and the paper's table; no number typed by hand.
 
 Each `card` of the declaration holds `checkpoint` (a folder, relative to the repository) and either `row` (the
-table row whose weights it ships, as `tax3d benchmark --keep` wrote it: its test episodes, how its weights were chosen
+table row whose weights it ships, as `tax3d table --keep` wrote it: its test episodes, how its weights were chosen
 and the one command that made it) or `eval` (its kept `tax3d
 eval` summary), optional `log` (its kept `tax3d train` log; left out for a run whose log was not kept: the card says
 so), optional `official` (the RMSE on the authors' `val` split, for a checkpoint trained on their demonstrations),
@@ -17,7 +17,7 @@ from pathlib import Path
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
 from lab.results import kept
-from lab.results.commands import shown
+from lab.results.commands import renamed, shown
 from lab.results.pages.page import SPLITS, Page, cell
 from lab.results.table import NAMES, PAPER_KEYS
 
@@ -211,9 +211,11 @@ def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict, bounds:
         "that validate best on `val` and scores the test episodes once:",
         "",
         "```bash",
-        row["command"],
+        renamed(row["command"]),
         "```",
         "",
+        *([] if renamed(row["command"]) == row["command"] else
+          [f"The row records it under the command's earlier name: `{row['command']}`.", ""]),
         *limits(task, config),
     ])
 

@@ -6,7 +6,7 @@ Beside what every declaration holds (lab.results.pages.page), a task page's hold
 `spread_note`, and arrays of tables `row` (id, label, summary: a kept evaluation, optional paper, group =
 "ablation", made, config, shipped), `curve` (id, label, summary: a kept validation curve or training log) and `draw`
 (demos, and the digests of train, val, unseen and ood: the draw of the demonstrations that table of the protocol
-names, lab.results.table.check_draw). Where `tax3d benchmark --keep` has kept rows for the task
+names, lab.results.table.check_draw). Where `tax3d table --keep` has kept rows for the task
 (docs/results/table/TASK/), the paper's table under that one protocol comes first, each row's scorings from the
 ledger (docs/results/table/ledger.jsonl).
 """
@@ -171,7 +171,7 @@ class TaskPage(Page):
         return draws
 
     def protocol(self) -> list[str]:
-        """The paper's table beside the rows of `tax3d benchmark` (docs/results/table/TASK/), when there are any."""
+        """The paper's table beside the rows of `tax3d table` (docs/results/table/TASK/), when there are any."""
         rows = table.load_rows(self.root / "table" / self.spec.get("task", ""))
         if not rows:
             return []
@@ -208,8 +208,8 @@ class TaskPage(Page):
         lines += ["## Commands", "", "The commands that made each row, the machine and the date. A `tax3d train "
                   "--preset cpu` command names every option in which the preset of its date differs from today's, "
                   "so it makes the same configuration today (`tests/test_made_commands.py` checks it for every row "
-                  "whose configuration is kept); one that takes an option since retired, or names a script since "
-                  f"moved, is marked \"{EARLIER}\":", "",
+                  "whose configuration is kept); one that takes an option since retired, or names a command or a "
+                  f"script since renamed or moved, is marked \"{EARLIER}\", with what runs it today:", "",
                   *fold("Every command", self.commands())]
         if len(self.timings()) > 2:
             lines += ["## Seconds per episode", "", *fold(

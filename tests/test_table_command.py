@@ -1,4 +1,4 @@
-"""tax3d benchmark end to end at a tiny budget: each row trains, is chosen on val, scored once on the test episodes;
+"""tax3d table end to end at a tiny budget: each row trains, is chosen on val, scored once on the test episodes;
 a stop between rows loses nothing and a rerun scores nothing twice unless asked."""
 
 import json
@@ -7,9 +7,10 @@ import shutil
 import pytest
 
 from tax3d import ledger, train
-from tax3d.benchmark import Args, demos_digest, run
 from tax3d.checkpoint import sha256
 from tax3d.errors import UsageError
+from tax3d.table import Args, demos_digest, run
+from tests.conftest import one_line_error
 
 
 @pytest.fixture
@@ -104,26 +105,26 @@ def test_a_row_trained_again_after_a_fix_counts_its_trainings_and_scorings(data,
     is refused and the --retrain rerun scores the new weights (not a third training), and the summary counts two
     trainings and two scorings. A row
     scored in OUT whose copy in --keep was lost gets it back on a plain rerun."""
-    from tax3d import benchmark
+    from tax3d import table
 
     args = Args(task="hangproccloth-simple", variants="cd", out=tmp_path / "bench", steps=2, episodes=1,
                 num_train=1, num_val=1, workers=1, data=data, keep=tmp_path / "keep")
     assert run(args) == 0
     first = json.loads((tmp_path / "keep" / "cd.json").read_text())
     assert first["trainings"] == 1 and first["test"]["scorings"] == 1
-    score = benchmark._score
+    score = table._score
 
     def stopped(*a):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(benchmark, "_score", stopped)
+    monkeypatch.setattr(table, "_score", stopped)
     args.retrain, args.steps = True, 3
     with pytest.raises(KeyboardInterrupt):
         run(args)
     aside = tmp_path / "bench" / "cd" / "train.replaced-1"
     assert sha256(aside / first["weights"] / "model.safetensors") == first["weights_sha256"]
     assert (tmp_path / "bench" / "cd" / "train" / "DONE").is_file()
-    monkeypatch.setattr(benchmark, "_score", score)
+    monkeypatch.setattr(table, "_score", score)
     args.retrain = False  # a plain rerun would report the old row for the new weights: refused
     with pytest.raises(UsageError, match="--variants cd: .* begun by --retrain and not yet scored"):
         run(args)
@@ -141,11 +142,16 @@ def test_a_row_trained_again_after_a_fix_counts_its_trainings_and_scorings(data,
     assert json.loads((tmp_path / "keep" / "cd.json").read_text()) == second
 
 
+def test_the_earlier_name_of_the_command_says_its_name_today(capsys):
+    one_line_error(capsys, ["benchmark", "--task", "hangbag"], "`tax3d benchmark` is renamed",
+                   "use `tax3d table` with the same options")
+
+
 def test_one_budget_and_the_multimodal_recipe(tmp_path, capsys):
-    from tax3d.benchmark import preset_of
+    from tax3d.table import preset_of
     from tax3d.cli import main
 
-    assert main(["benchmark", "--steps", "5", "--minutes", "3", "--out", str(tmp_path / "b")]) == 2
+    assert main(["table", "--steps", "5", "--minutes", "3", "--out", str(tmp_path / "b")]) == 2
     assert "--steps 5: not with --minutes 3" in capsys.readouterr().err
     assert preset_of(Args(task="hangproccloth-multimodal")) == "cpu-multimodal"
     assert preset_of(Args(task="hangbag")) == "cpu" and preset_of(Args(task="hangbag", preset="paper")) == "paper"
@@ -157,7 +163,7 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
     table's minutes."""
     import numpy as np
 
-    from tax3d import benchmark
+    from tax3d import table
     from tax3d.data import load_demo, write_demo
     from tax3d.sim import generate as gen
 
@@ -172,13 +178,13 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
 
     monkeypatch.setattr(gen, "generate", fake_generate)
     args = Args(task="hangproccloth-unimodal", variants="cd,dp3", out=tmp_path, num_train=8, minutes=30)
-    assert benchmark._check(args) == ["cd", "dp3"]
+    assert table._check(args) == ["cd", "dp3"]
     kept = write_demo(tmp_path / "data" / "train" / "demo_0.npz", np.zeros((5, 3)), np.ones((4, 3)), flow=np.zeros((5, 3)))
-    benchmark._generate_data(args)
+    table._generate_data(args)
     plan = [(c.split, c.out.name, c.first_index, c.num, c.trajectories) for c in calls]
     assert plan == [("train", "train-traj", 0, 8, True), ("train", "train", 0, 8, False), ("val", "val", 0, 40, False),
                     ("unseen", "unseen", 100, 40, False), ("ood", "ood", 100, 40, False)]
-    assert {c.max_attempts for c in calls} == {benchmark.DATA_ATTEMPTS}
+    assert {c.max_attempts for c in calls} == {table.DATA_ATTEMPTS}
     for i in range(1, 8):
         with_traj, train = (load_demo(tmp_path / "data" / f / f"demo_{i}.npz") for f in ("train-traj", "train"))
         assert "traj_targets" in with_traj and not any(k.startswith("traj_") for k in train)
@@ -193,7 +199,7 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
         return 0
 
     monkeypatch.setattr(dp3_train, "run", fake_run)
-    assert benchmark._train(args, "dp3", tmp_path / "data").name == "last"
+    assert table._train(args, "dp3", tmp_path / "data").name == "last"
     assert trained[0].train.minutes == 30 and trained[0].data.task == "hangproccloth-unimodal"
 
 
@@ -211,12 +217,12 @@ def test_data_only_makes_the_rows_demonstrations_and_nothing_else(tmp_path, monk
     assert not (tmp_path / "b" / "dp3").exists() and not (tmp_path / "b" / "results.md").exists()
 
 
-def test_a_row_records_the_benchmark_command():
-    from tax3d import benchmark, provenance
+def test_a_row_records_the_table_command():
+    from tax3d import provenance, table
 
-    provenance.running(["benchmark", "--task", "hangbag", "--keep", "docs/a b"])
+    provenance.running(["table", "--task", "hangbag", "--keep", "docs/a b"])
     try:
-        assert benchmark.command() == "tax3d benchmark --task hangbag --keep 'docs/a b'"
+        assert table.command() == "tax3d table --task hangbag --keep 'docs/a b'"
     finally:
         provenance.running(None)
 
@@ -239,7 +245,7 @@ def test_the_floor_and_ceiling_rows_score_fixed_goals_without_training(tmp_path,
     for split in ("train", "val", "unseen", "ood"):
         (tmp_path / "data" / split).mkdir(parents=True)
     monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: {"failed": []})
-    monkeypatch.setattr("tax3d.benchmark._data_digests", lambda a, data: {})  # no demos in these folders
+    monkeypatch.setattr("tax3d.table._data_digests", lambda a, data: {})  # no demos in these folders
     args = Args(task="hangproccloth-unimodal", variants="floor,ceiling", out=tmp_path / "b", episodes=1,
                 data=tmp_path / "data", keep=tmp_path / "keep", minutes=60)
     assert run(args) == 0
@@ -252,18 +258,18 @@ def test_the_floor_and_ceiling_rows_score_fixed_goals_without_training(tmp_path,
 def test_an_unknown_row_is_one_line_naming_the_rows(tmp_path, capsys):
     from tax3d.cli import main
 
-    assert main(["benchmark", "--variants", "cd,floor,bogus", "--out", str(tmp_path / "b")]) == 2
+    assert main(["table", "--variants", "cd,floor,bogus", "--out", str(tmp_path / "b")]) == 2
     err = capsys.readouterr().err
     assert "--variants: unknown row 'bogus'" in err and "dp3, floor, ceiling" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "b").exists()
 
 
 def test_all_is_every_row_of_the_tasks_table(tmp_path):
-    from tax3d import benchmark
+    from tax3d import table
 
-    rows = benchmark._check(Args(task="hangproccloth-multimodal", variants="all", out=tmp_path / "m"))
+    rows = table._check(Args(task="hangproccloth-multimodal", variants="all", out=tmp_path / "m"))
     assert rows == ["cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp", "rd", "rp", "dp3", "floor", "ceiling"]
-    rows = benchmark._check(Args(task="hangbag", variants="all", out=tmp_path / "b"))
+    rows = table._check(Args(task="hangbag", variants="all", out=tmp_path / "b"))
     assert "rd" not in rows and rows[-3:] == ["dp3", "floor", "ceiling"]
 
 

@@ -1,4 +1,4 @@
-"""`tax3d benchmark`: the paper's table of one task, row by row, under one protocol; resumable at every stage.
+"""`tax3d table`: the paper's table of one task, row by row, under one protocol; resumable at every stage.
 
 Every row (a variant) trains on the same demonstrations with the same preset and budget, keeps the weights that
 validate best on the `val` split, and is then scored once on the test episodes: `unseen` and `ood` demos from
@@ -51,7 +51,7 @@ class Args:
     bound the policy: floor (the mean goal of the train folder in the anchor frame) and ceiling (each episode's own
     demonstrated goal), scored on the same test episodes without training; `all`: every row of the task's table in
     appendix D (RD and RP on multimodal only) and both fixed goals"""
-    out: Annotated[Path, OutputFolder] = Path("runs/benchmark")
+    out: Annotated[Path, OutputFolder] = Path("runs/table")
     """output folder: data/<split>, <variant>/train, <variant>/eval, results.md"""
     preset: PresetName | None = None
     """training settings of every row (default: the task's CPU recipe, cpu-multimodal on multimodal, else cpu)"""
@@ -113,7 +113,7 @@ def _generate_data(args: Args) -> Path:
     if "dp3" in _rows(args):
         plan.insert(0, ("train", "train-traj", 0, num_train))
     for split, folder, first, num in plan:
-        print(f"[benchmark] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / folder}",
+        print(f"[table] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / folder}",
               flush=True)
         stats = generate(GenerateArgs(task=args.task, split=split, first_index=first, num=num, out=root / folder,
                                       workers=args.workers, trajectories=folder == "train-traj",
@@ -148,7 +148,7 @@ def _train(args: Args, variant: str, data: Path) -> Path:
     if variant == "dp3":
         return _train_dp3(args, out, _train_files(data / "train-traj", num))
     if not (out / "DONE").exists():
-        print(f"[benchmark] training {variant} -> {out}", flush=True)
+        print(f"[table] training {variant} -> {out}", flush=True)
         train.run(train_args(args, variant, out, _train_files(data / "train", num), data / "val"))
         write_text(out / "DONE", "finished\n")
     return out / "best" if (out / "best").is_dir() else out / "last"
@@ -174,7 +174,7 @@ def _train_dp3(args: Args, out: Path, files: tuple[str, ...]) -> Path:
     from tax3d.baselines.dp3 import train as dp3_train
 
     if not (out / "DONE").exists():
-        print(f"[benchmark] training dp3 -> {out}", flush=True)
+        print(f"[table] training dp3 -> {out}", flush=True)
         dp3_train.run(dp3_train.Args(
             out=str(out), preset="paper" if args.preset == "paper" else "cpu", device=args.device,
             data=dp3_cfg.DataOverrides(**_only(dp3_cfg.DataOverrides, train=files, task=args.task)),
@@ -230,7 +230,7 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
     row = _scored(args, variant)
     if row is not None and not (args.rescore or args.retrain):
         return row
-    print(f"[benchmark] scoring {variant} ({checkpoint or 'a fixed goal'}) on the test episodes", flush=True)
+    print(f"[table] scoring {variant} ({checkpoint or 'a fixed goal'}) on the test episodes", flush=True)
     summary = evaluate(EvalArgs(checkpoint=checkpoint, goal=FIXED_GOALS.get(variant, "model"), task=args.task,
                                 splits="unseen,ood", data=data,
                                 first_index=args.first_index, episodes=args.episodes, samples=args.samples,
@@ -288,13 +288,13 @@ def _set_aside(args: Args, variant: str) -> None:
         return
     k = next(k for k in itertools.count(1) if not (run.parent / f"train.replaced-{k}").exists())
     run.rename(run.parent / f"train.replaced-{k}")
-    print(f"[benchmark] {variant}: the weights scored before are now in {run.parent / f'train.replaced-{k}'}; "
+    print(f"[table] {variant}: the weights scored before are now in {run.parent / f'train.replaced-{k}'}; "
           f"training again", flush=True)
 
 
 def command() -> str:
-    """The command line of this benchmark, as a page shows it."""
-    return provenance.command("tax3d.benchmark")
+    """The command line of this table run, as a page shows it."""
+    return provenance.command("tax3d.table")
 
 
 def _rows(args: Args) -> list[str]:
@@ -346,7 +346,7 @@ def run(args: Args) -> int:
     for variant in variants:
         scored = None if args.rescore or args.retrain else _scored(args, variant)
         if scored is not None:
-            print(f"[benchmark] {variant}: scored before, not trained or scored again (--rescore to score it)",
+            print(f"[table] {variant}: scored before, not trained or scored again (--rescore to score it)",
                   flush=True)
             if args.keep is not None and _kept(args, variant) is None:  # scored in OUT, stopped before its copy
                 write_json(args.keep / f"{variant}.json", scored)
