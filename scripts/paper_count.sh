@@ -6,7 +6,7 @@
 #   bash scripts/paper_count.sh --list          # the pairs
 #
 # First the pair's demonstrations (the first 64 train and 40 val demos of the task, with both cores, skipped where
-# present), then benchmarks/paper_count.py in a process group of its own at a lowered priority (autogroup nice 5),
+# present), then lab.studies.paper_count in a process group of its own at a lowered priority (autogroup nice 5),
 # so that other work on the machine goes first; its curves are kept in docs/results/paper-count/PAIR.json.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,7 +31,7 @@ for split in train val; do
   "$TAX3D" generate --task "$TASK" --split $split --num $num --out "data/$DATA/$split" --workers 2 \
     >> "runs/logs/paper-count-$NAME-data.log" 2>&1
 done
-args=(benchmarks/paper_count.py --task "$TASK" --train "data/$DATA/train" --num-train 64 --val "data/$DATA/val"
+args=(-m lab.studies.paper_count --task "$TASK" --train "data/$DATA/train" --num-train 64 --val "data/$DATA/val"
       --out "runs/paper-count/$DATA" --hours "$HOURS" --keep "docs/results/paper-count/$NAME.json")
 for ((i = 0; i < ${#ARMS[@]}; i += 2)); do args+=(--arm "${ARMS[i]}" "${ARMS[i + 1]}"); done
 exec setsid bash -c 'echo 5 > /proc/$$/autogroup; exec "$@"' priority "$PYTHON" "${args[@]}"

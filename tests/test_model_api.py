@@ -16,8 +16,6 @@ from tax3d.model.tax3d import CheckpointError, Tax3D
 
 from tests.conftest import N, scene, synthetic_demo, tiny_model
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 @pytest.mark.parametrize("variant", ["cd", "cp", "cd_nac", "cp_nac", "rd", "rp", "sd", "sp"])
 def test_translating_the_scene_translates_the_goals(variant):
@@ -186,14 +184,11 @@ def test_predictions_of_demos_of_different_sizes_load_without_pickle(tmp_path, c
     assert goals.shape == (2, 2, N + 6, 3) and points.tolist() == [N, N + 6]
     assert np.isnan(goals[0, :, N:]).all() and np.isfinite(goals[0, :, :N]).all() and np.isfinite(goals[1]).all()
 
-def test_the_samplers_benchmark_scores_each_sampler_as_predict_does_alone(tmp_path, capsys, checkpoint):
-    """benchmarks/samplers.py: the same demos and seed under each sampler, each as `tax3d predict` scores it."""
-    import importlib.util
+def test_the_samplers_study_scores_each_sampler_as_predict_does_alone(tmp_path, capsys, checkpoint):
+    """lab.studies.samplers: the same demos and seed under each sampler, each as `tax3d predict` scores it."""
+    from lab.studies import samplers
 
     ckpt, demos = checkpoint
-    spec = importlib.util.spec_from_file_location("samplers", ROOT / "benchmarks" / "samplers.py")
-    samplers = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(samplers)
     assert samplers.main(["--checkpoint", str(ckpt), "--demos", str(demos), "--samples", "2"]) == 0
     compared = json.loads(capsys.readouterr().out)["samplers"]
     assert list(compared) == ["ddpm_10", "ddim_10", "ddpm_100"]

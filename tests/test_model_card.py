@@ -120,7 +120,7 @@ def test_model_card_of_a_run_whose_log_was_not_kept_says_so(tmp_path):
 
 def test_model_card_of_a_checkpoint_trained_on_the_authors_data(tmp_path):
     checkpoint(tmp_path, "tax3d-cd-official", data__task="hangproccloth-simple", data__rotate=True)
-    report = stamp("official-val", 1, {"command": "python benchmarks/official_report.py", "date": "2026-01-02",
+    report = stamp("official-val", 1, {"command": "python -m lab.studies.official_report", "date": "2026-01-02",
                                        "machine": "n", "demos": 40, "samples": 5, "mean_goal_baseline_rmse": 1.1,
                                        "samplers": {"ddpm_100": {"rmse": 0.21, "rmse_min_of_samples": 0.19}}})
     root = repository(tmp_path, [{"checkpoint": "checkpoints/tax3d-cd-official", "eval": "evals/x.json",
@@ -133,7 +133,7 @@ def test_model_card_of_a_checkpoint_trained_on_the_authors_data(tmp_path):
     assert "| this checkpoint, 100-step DDPM | 0.210 | 0.190 |" in card
     assert "| the paper (`unseen`) | 0.255 | - |" in card
     assert "| mean goal of `train` (the floor) | 1.100 | - |" in card
-    assert "Command: `python benchmarks/official_report.py`" in card
+    assert "Command: `python -m lab.studies.official_report`" in card
     assert "rotation augmentation" in card and "without rotation" not in card
 
 

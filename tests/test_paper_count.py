@@ -1,4 +1,4 @@
-"""The study at the paper's demonstration count: benchmarks/paper_count.py's arms and kept curves, and their page."""
+"""The study at the paper's demonstration count: lab.studies.paper_count's arms and kept curves, and their page."""
 
 from __future__ import annotations
 
@@ -14,13 +14,13 @@ from tax3d.kept import stamp
 from tests.conftest import write_demos
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = str(ROOT / "benchmarks" / "paper_count.py")
 SMALL = ("--model.hidden_size 32 --model.depth 2 --model.num_heads 2 --data.num_action_points 16 "
          "--data.num_anchor_points 24 --train.num_workers 0 --train.batch_size 4")
 
 
 def run(*argv) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, SCRIPT, *argv], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "lab.studies.paper_count", *argv], capture_output=True, text=True,
+                          cwd=ROOT)
 
 
 def test_arms_train_side_by_side_and_keep_their_curves(tmp_path):
@@ -47,6 +47,7 @@ def test_arms_train_side_by_side_and_keep_their_curves(tmp_path):
     collected = kept.load(tmp_path / "keep.json", ("paper-count",))
     assert collected["arms"] == study["arms"] and collected["command"] == study["command"]
     assert "--collect" not in study["command"] and "--keep" in study["command"]
+    assert study["command"].startswith("python -m lab.studies.paper_count --task custom ")
 
 
 def test_bad_options_are_one_line_errors(tmp_path):

@@ -252,6 +252,21 @@ def test_every_writer_stamps_a_kind_and_version_that_the_pages_read():
         assert m.group(1) in kept.KINDS and int(m.group(2)) == kept.KINDS[m.group(1)][0][-1], m.group(0)
 
 
+def test_a_kept_command_renamed_or_moved_since_shows_what_runs_it_today():
+    from lab.results.commands import renamed, shown
+
+    today = "(recorded with an earlier version; today: {} with the same options)"
+    assert renamed("tax3d benchmark --task hangbag --keep k") == "tax3d table --task hangbag --keep k"
+    table = today.format("`tax3d table`")
+    assert shown("tax3d benchmark --task hangbag") == f"`tax3d benchmark --task hangbag` {table}"
+    assert shown("tax3d benchmark --tusk x").endswith("today: `tax3d table`)")  # an option since retired
+    assert shown("tax3d results hangbag").endswith(today.format("`python -m lab.results`"))
+    study = today.format("`python -m lab.studies.mode_spread`")
+    assert shown("python benchmarks/mode_spread.py --data d") == f"`python benchmarks/mode_spread.py --data d` {study}"
+    for current in ("tax3d table --task hangbag", "python benchmarks/sim.py", "python -m lab.studies.mode_spread"):
+        assert shown(current) == f"`{current}`"
+
+
 # -- the measurement pages: the simulation page, the official-data page, the training study -------------------------
 
 PROV = {"machine": "fixture machine", "date": "2026-02-03"}
@@ -525,7 +540,7 @@ def test_measurement_pages_from_fixture_json(measured):
     assert "| goal RMSE against the official goal (mean / median / max) | 0.250 / 0.200 / 0.750 |" in sim
     assert "| demos with goal RMSE under 0.5 | 1 | 1 |" in sim
     assert "| hangproccloth-simple | `unseen` | 4 | 0.75 | 1 |" in sim and "| hangbag | 640 | 8.50 | - |" in sim
-    assert ("`python scripts/fidelity.py` (recorded with an earlier version; today: `python benchmarks/fidelity.py`) "
+    assert ("`python scripts/fidelity.py` (recorded with an earlier version; today: `python -m lab.studies.fidelity`) "
             "on fixture machine, 2026-02-03") in sim
     official = (measured / "official-simple.md").read_text()
     assert "TAX3D-CD predicts goals 0.125 RMSE from the official `val` goals, against the paper's 0.255" in official

@@ -24,26 +24,30 @@ SEPARATORS = ("&&", "||", ";", "|")
 # scripts that kept command lines name, since replaced or removed: what to run today (None: nothing)
 MOVED = {
     "scripts/oracle_policy.py": "`tax3d eval --goal demo` or `--goal mean` with the same options",
-    "scripts/sampler_check.py": "`python benchmarks/samplers.py`, one checkpoint at a time",
+    "scripts/sampler_check.py": "`python -m lab.studies.samplers`, one checkpoint at a time",
     "scripts/keep_summary.py": "`tax3d eval`, which writes OUT/summary.json",
     "scripts/keep_log.py": "`tax3d train`, which writes OUT/summary.json",
     "scripts/val_curve.py": "`tax3d train`, which writes OUT/summary.json",
     "scripts/model_card.py": "`python -m lab.results model-cards`, from docs/results/pages/model-cards.toml",
     "scripts/precision_parts.py": None,
-    **{f"scripts/{name}.py": f"`python benchmarks/{name}.py`" for name in (
-        "expert_rates", "fidelity", "goal_spread", "mode_spread", "official_report", "paper_budget_run",
-        "success_by_rmse")},
+    "scripts/paper_budget_run.py": "`python benchmarks/paper_budget_run.py`",
+    **{f"scripts/{name}.py": f"`python -m lab.studies.{name}`" for name in (
+        "expert_rates", "fidelity", "goal_spread", "mode_spread", "official_report", "success_by_rmse")},
 }
+# the studies that moved from benchmarks/ to lab/studies/
+STUDIES = ("paper_count", "time_to_quality", "fidelity", "official_report", "success_by_rmse", "goal_spread",
+           "mode_spread", "expert_rates", "val_points", "generate_determinism", "samplers")
 # commands that kept command lines name, since renamed or moved: the command that runs them today, with the same options
 RENAMED = {
     **{f"{prefix} {old}": f"{prefix} {new}" for old, new in cli.RENAMED.items() for prefix in ("tax3d", "tax3d.cli")},
     "tax3d results": "python -m lab.results",
+    **{f"python benchmarks/{name}.py": f"python -m lab.studies.{name}" for name in STUDIES},
 }
 
 
 def tax3d_commands(command: str) -> list[tuple[str, list[str]]]:
     """(subcommand, its arguments) of each `tax3d NAME ...` or `python -m tax3d.cli NAME ...` in a command line
-    (commands joined by && or ; each)."""
+    (commands joined by && or ; each), and the `tax3d train` of each run of `python -m lab.studies.time_to_quality`."""
     try:
         words = shlex.split(command.split(" #")[0])
     except ValueError:
@@ -56,14 +60,14 @@ def tax3d_commands(command: str) -> list[tuple[str, list[str]]]:
         start = next((i for i, w in enumerate(part[:-1]) if w.endswith("tax3d") or w == "tax3d.cli"), None)
         if start is not None:
             found.append((part[start + 1], part[start + 2:]))
-        elif any(w.endswith("benchmarks/time_to_quality.py") for w in part):
+        elif "lab.studies.time_to_quality" in part:
             found += studied_runs(part)
         part = []
     return found
 
 
 def studied_runs(words: list[str]) -> list[tuple[str, list[str]]]:
-    """The `tax3d train` options of each `--run NAME OPTIONS` of benchmarks/time_to_quality.py, on its preset."""
+    """The `tax3d train` options of each `--run NAME OPTIONS` of lab.studies.time_to_quality, on its preset."""
     preset = words[words.index("--preset") + 1] if "--preset" in words[:-1] else "cpu"
     return [("train", ["--preset", preset, *shlex.split(words[i + 2])])
             for i, w in enumerate(words[:-2]) if w == "--run"]
@@ -71,8 +75,9 @@ def studied_runs(words: list[str]) -> list[tuple[str, list[str]]]:
 
 @functools.lru_cache(maxsize=None)
 def parses(command: str) -> bool:
-    """False where today's version rejects the options of a `tax3d` command in the line; True otherwise."""
-    return all(_parses(name, argv) for name, argv in tax3d_commands(command) if name in COMMANDS)
+    """False where today's version rejects the options of a `tax3d` command in the line (under its name today);
+    True otherwise."""
+    return all(_parses(name, argv) for name, argv in tax3d_commands(renamed(command)) if name in COMMANDS)
 
 
 def _parses(name: str, argv: list[str]) -> bool:
@@ -112,8 +117,7 @@ def shown(command: str) -> str:
     if script is not None:
         today = MOVED[script]
         return f"`{command}` ({EARLIER}" + (f"; today: {today})" if today else "; the script has since been removed)")
-    now = renamed(command)
-    if now == command:
+    if renamed(command) == command:
         return f"`{command}`" + ("" if parses(command) else f" ({EARLIER})")
     names = " and ".join(f"`{new}`" for old, new in RENAMED.items() if _whole(old).search(command))
-    return f"`{command}` ({EARLIER}; today: {names}" + (" with the same options)" if parses(now) else ")")
+    return f"`{command}` ({EARLIER}; today: {names}" + (" with the same options)" if parses(command) else ")")

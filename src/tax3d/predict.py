@@ -8,7 +8,7 @@ and demo i's rows from points[i] on are NaN), `points` (D,) the action points of
 min over samples (docs/reference.md, Evaluation), the mean over all samples and that of each demo's medoid sample
 (the one nearest the others); `--summary FILE` keeps it as JSON with the command, machine and date (kind
 "predict", tax3d.kept).
-`benchmarks/samplers.py` scores the same demos and seed with each sampler.
+The repository's `python -m lab.studies.samplers` scores the same demos and seed with each sampler.
 """
 
 from __future__ import annotations

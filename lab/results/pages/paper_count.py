@@ -1,5 +1,5 @@
 """The study at the paper's demonstration count (`kind = "paper-count"`): validation curves of TAX3D-CD arms trained
-side by side far past the table's hour, kept by benchmarks/paper_count.py, against samples seen.
+side by side far past the table's hour, kept by lab.studies.paper_count, against samples seen.
 
 The declaration holds `page` (the markdown it writes), `verdict`, and `study` tables: id, label, summary (a kept
 paper-count JSON), plot (the PNG it draws), optional `row` (a kept table row of the same task and count: its
@@ -40,7 +40,7 @@ class PaperCountPage(Page):
             path = self.root / study["summary"]
             if not path.is_file():
                 raise UsageError(f"{self.file.name}: study {study['id']!r}: {path} not found; expected the kept "
-                                 "benchmarks/paper_count.py JSON")
+                                 "`python -m lab.studies.paper_count` JSON")
             data = kept.load(path, ("paper-count",))
             for name, arm in data["arms"].items():
                 if not arm["curve"]:

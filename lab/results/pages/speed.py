@@ -14,7 +14,7 @@ from lab.results.pages.page import fold, provenance
 class SpeedPage(MeasurementPage):
     """docs/results/training-speed.md: where a CPU training step goes, the speed levers, and each lever's runs side
     by side at equal wall time (sources: `table = "profile"`, a benchmarks/train_step.py JSON, and `table = "pair"`,
-    benchmarks/time_to_quality.py JSON). `plot` names the pairs whose validation curves the page's plot draws."""
+    lab.studies.time_to_quality JSON). `plot` names the pairs whose validation curves the page's plot draws."""
 
     def markdown(self) -> str:
         profile = self.sources("profile")[0]

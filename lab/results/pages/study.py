@@ -2,7 +2,7 @@
 docs/training.md that gives what each difference of the `cpu` preset from the paper's buys.
 
 The declaration names the page it fills between `<!-- study -->` and `<!-- /study -->` (`page`), its plot (`plot`),
-the study files (`studies`, a glob of kept `benchmarks/time_to_quality.py` JSON), the minutes of its table
+the study files (`studies`, a glob of kept lab.studies.time_to_quality JSON), the minutes of its table
 (`marks`), the run of the shipped recipe (`shipped`, "STUDY: RUN"), the guide it fills between
 `<!-- differences -->` and `<!-- /differences -->` (`guide`) and its rows (`difference`: what, with and without,
 two "STUDY: RUN", optional with_eval and without_eval, kept evaluations of each run's weights).
@@ -48,7 +48,7 @@ class StudyPage(Page):
                                                                 for t in re.split(r"(\d+)", p.stem)])
         if not paths:
             raise UsageError(f"{self.file.name}: studies {pattern!r}: no file in {self.root}; expected the kept "
-                             "`benchmarks/time_to_quality.py` JSON")
+                             "`python -m lab.studies.time_to_quality` JSON")
         self.studies = [(p.stem, kept.load(p, ("study",)), p.relative_to(self.root).as_posix()) for p in paths]
         self.runs = {f"{name}: {run}": result for name, study, _ in self.studies
                      for run, result in study["runs"].items()}
@@ -106,7 +106,7 @@ class StudyPage(Page):
             + f" on {machine}, {date}"
             for (machine, date), same in itertools.groupby(self.studies, lambda s: (s[1]["machine"], s[1]["date"])))
         lines = [self.verdict(), "", f"![validation RMSE against minutes]({link})", "",
-                 f"Measured by `benchmarks/time_to_quality.py`: {measured}; built by "
+                 f"Measured by `python -m lab.studies.time_to_quality`: {measured}; built by "
                  f"`python -m lab.results {self.name}`.", "",
                  *self.notes(), *fold(f"Every run of the {len(self.studies)} studies", self.table()),
                  *self.details("The study log: what each study found"), *fold("The command of each run", commands)]

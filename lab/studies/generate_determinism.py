@@ -4,7 +4,7 @@ Makes the demonstrations of one cloth alone, and again right after the cloth bef
 worker), then the largest difference of their arrays. `--shared-process` runs both cloths in one process, as
 generation did before each cloth got a process of its own.
 
-    python benchmarks/generate_determinism.py [--task hangproccloth-multimodal --split unseen --first-index 100]
+    python -m lab.studies.generate_determinism [--task hangproccloth-multimodal --split unseen --first-index 100]
 """
 
 from __future__ import annotations

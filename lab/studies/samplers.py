@@ -1,6 +1,6 @@
 """How much a checkpoint's goals depend on its sampler: the same demos, seed and samples with each of SAMPLERS.
 
-    python benchmarks/samplers.py --checkpoint runs/cd/best --demos data/unimodal/unseen [--samples 5] [--seed 0]
+    python -m lab.studies.samplers --checkpoint runs/cd/best --demos data/unimodal/unseen [--samples 5] [--seed 0]
 
 Prints one JSON object: per sampler (the 10-step respaced DDPM, the 10-step DDIM and the 100-step DDPM) the mean
 over demos of the min-over-samples RMSE, the mean RMSE of all samples and that of each demo's medoid sample, as
@@ -22,6 +22,7 @@ from tax3d.data.format import load_demo
 from tax3d.metrics import rmse
 from tax3d.model.tax3d import Tax3D
 from tax3d.predict import medoid_rmse
+from lab.studies import command_line
 
 SAMPLERS = ((10, "ddpm"), (10, "ddim"), (100, "ddpm"))  # (steps, sampler)
 
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     if not model.spec.diffusion:
         parser.error(f"--checkpoint {args.checkpoint}: a {model.spec.name} checkpoint has no sampler")
     demos = [load_demo(path) for path in demo_files(args.demos)]
-    result = {"command": "python benchmarks/samplers.py " + " ".join(sys.argv[1:] if argv is None else argv),
+    result = {"command": command_line(__spec__.name, sys.argv[1:] if argv is None else argv),
               "date": provenance.today(), "machine": provenance.machine(), "checkpoint": args.checkpoint,
               "demos": len(demos), "samples": args.samples, "seed": args.seed,
               "samplers": compare(model, demos, args.samples, args.seed, args.max_points)}

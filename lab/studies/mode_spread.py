@@ -1,6 +1,6 @@
 """How far apart the two goals of a multimodal cloth are, and what predicting their average would score; prints JSON.
 
-    python benchmarks/mode_spread.py --data data/multimodal [--out FILE]
+    python -m lab.studies.mode_spread --data data/multimodal [--out FILE]
 
 Per split, over the cloths with both demonstrations (one per hole, same anchor pose): the RMSE between the two goals
 (the separation of the modes), and the RMSE of their point-wise midpoint to either goal, which is then that
@@ -19,6 +19,7 @@ from tax3d.atomic import write_json
 from tax3d import kept, provenance
 from tax3d.data.format import cloth_groups
 from tax3d.metrics import rmse
+from lab.studies import command_line
 
 
 def main() -> int:
@@ -31,7 +32,7 @@ def main() -> int:
         print(f"error: --data {args.data}: expected train, unseen or ood folders of demo_N.npz files inside it",
               file=sys.stderr)
         return 2
-    out = {"command": "python " + " ".join(sys.argv), "date": provenance.today(), "splits": {}}
+    out = {"command": command_line(__spec__.name, sys.argv[1:]), "date": provenance.today(), "splits": {}}
     for split in splits:
         pairs = [[d["action_pc"] + d["flow"] for d in g] for g in cloth_groups(args.data / split) if len(g) == 2]
         out["splits"][split] = {

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from tax3d import kept, provenance
 from tax3d.sim.generate import Args, generate
+from lab.studies import command_line
 
 TASKS = ("hangproccloth-simple", "hangproccloth-unimodal", "hangproccloth-multimodal", "hangbag")
 
@@ -30,7 +31,7 @@ def main() -> int:
                         help="keep the demonstrations in KEEP/<task>/<split> (rerun `tax3d generate` there to fill gaps)")
     args = parser.parse_args()
     report = {
-        "command": "python " + " ".join(sys.argv),
+        "command": command_line(__spec__.name, sys.argv[1:]),
         "machine": provenance.machine(),
         "date": provenance.today(),
         "rates": [],

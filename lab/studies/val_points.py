@@ -1,6 +1,6 @@
 """A checkpoint's training-time validation RMSE with the network on each of several numbers of action points.
 
-    python benchmarks/val_points.py --checkpoint runs/ttq33/b8-p128-30min/best --val data/unimodal/val \
+    python -m lab.studies.val_points --checkpoint runs/ttq33/b8-p128-30min/best --val data/unimodal/val \
         --points 128 256 0 [--val-demos 20] [--samples 2] [--seed 42]
 
 The same measure as `tax3d train --train.val-points sampled` logs (`tax3d.train.validate`: the mean over the
@@ -21,6 +21,7 @@ from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.model.tax3d import Tax3D
 from tax3d.train import validate
+from lab.studies import command_line
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -45,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     for points in args.points:
         model.config.data.predict_points = points
         rows[str(points)] = validate(model, demos, samples, seed=seed, points="sampled")
-    result = {"command": "python benchmarks/val_points.py " + " ".join(sys.argv[1:] if argv is None else argv),
+    result = {"command": command_line(__spec__.name, sys.argv[1:] if argv is None else argv),
               "date": provenance.today(), "machine": provenance.machine(), "checkpoint": args.checkpoint,
               "trained_points": model.config.data.num_action_points, "demos": len(demos), "samples": samples,
               "seed": seed, "points": rows}

@@ -1,6 +1,6 @@
 """The official-data checkpoint on the official `val` split: RMSE beside the paper's and the mean-goal baseline.
 
-    python benchmarks/official_report.py [--checkpoint checkpoints/tax3d-cd-official-simple] [--samples 5]
+    python -m lab.studies.official_report [--checkpoint checkpoints/tax3d-cd-official-simple] [--samples 5]
 
 Measures on the authors' data (../shared beside the project) and writes docs/results/official_val.json; the page,
 docs/results/official-simple.md, is built from it (and from docs/results/model_benchmark.json) by
@@ -20,8 +20,9 @@ import torch
 
 from tax3d import kept, provenance
 from tax3d.atomic import write_text
+from lab.studies import command_line
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
 OFFICIAL = ROOT.parent / "shared" / "data" / "tax3d-official" / "hangproccloth-simple"
 
@@ -39,8 +40,7 @@ def measure(checkpoint: Path, samples: int, seed: int) -> dict:
     baseline = MeanGoalBaseline.fit(train)
     base = [float(rmse(baseline.predict(d["action_pc"], d["anchor_pc"]), t)) for d, t in zip(val, truth)]
     out = {
-        "command": "python " + " ".join([str(Path(sys.argv[0]).relative_to(ROOT) if Path(sys.argv[0]).is_absolute()
-                                             else sys.argv[0])] + sys.argv[1:]),
+        "command": command_line(__spec__.name, sys.argv[1:]),
         "checkpoint": str(checkpoint.relative_to(ROOT) if checkpoint.is_relative_to(ROOT) else checkpoint),
         "machine": provenance.machine(f"torch {torch.__version__}"),
         "date": provenance.today(),

@@ -1,7 +1,7 @@
 """Validation curves at the paper's demonstration count: TAX3D-CD arms trained side by side, one core each, for
 as long as it takes, resumed from each arm's last/ across calls.
 
-    python benchmarks/paper_count.py --task hangproccloth-unimodal --train data/unimodal/train --num-train 64 \
+    python -m lab.studies.paper_count --task hangproccloth-unimodal --train data/unimodal/train --num-train 64 \
         --val data/unimodal/val --out runs/paper-count/unimodal --hours 2.5 \
         --arm cpu "" --arm scene "--data.rotate-scene True" \
         --keep docs/results/paper-count/unimodal-cpu-scene.json
@@ -36,6 +36,7 @@ from tax3d.atomic import write_json
 from tax3d.checkpoint import read_log
 from tax3d.data.format import list_demos
 from tax3d.digest import demos_digest
+from lab.studies import command_line
 
 WRITE_EVERY = 300  # seconds between two writes of --keep while the arms train
 OPTIONAL = ("val_grip_error", "val_coverage_rmse", "val_precision_rmse")  # logged where the demos allow
@@ -96,7 +97,7 @@ def write_keep(args, commands: dict) -> None:
     arms = {name: {"options": options, "command": shlex.join(commands[name]), **curve(args.out / name)}
             for name, options in args.arm}
     result = {"study": "paper_count", "task": args.task, "num_train": args.num_train, "preset": args.preset,
-              "command": "python benchmarks/paper_count.py " + shlex.join(without_hours(sys.argv[1:])),
+              "command": command_line(__spec__.name, without_hours(sys.argv[1:])),
               "train": str(args.train), "val": str(args.val), "val_demos": args.val_demos,
               "val_samples": args.val_samples, "digests": args.digests, "machine": provenance.machine(),
               "date": provenance.today(), "cores_per_arm": 1, "arms": arms}

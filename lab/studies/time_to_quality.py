@@ -1,6 +1,6 @@
 """Validation RMSE against wall time: configurations trained side by side for the same minutes, one thread each.
 
-    python benchmarks/time_to_quality.py --minutes 60 --train data/unimodal/train --val data/unimodal/val \
+    python -m lab.studies.time_to_quality --minutes 60 --train data/unimodal/train --val data/unimodal/val \
         --run shipped "" --run x0 "--diffusion.loss x0" --out runs/ttq [--validations 12] [--val-demos 20]
 
 Each `--run NAME OPTIONS` is a `tax3d train --preset PRESET --train.minutes M` with its own extra options, started
@@ -12,7 +12,7 @@ object, also written to OUT/time_to_quality.json: per run, its options, steps pe
 (minutes, step, val_rmse: min over `--val-samples` samples, val_rmse_mean: mean over them; on multimodal
 val_coverage_rmse: each cloth's goals against the samples of all its demos, appendix C).
 
-    python benchmarks/time_to_quality.py --collect NAME RUN_DIR "COMMAND" --out runs/finals
+    python -m lab.studies.time_to_quality --collect NAME RUN_DIR "COMMAND" --out runs/finals
 
 `--threads N` gives each run N torch threads and N cores of its own instead of one: one run of two threads on both
 cores of a 2-core machine is the other way to spend them than two runs of one thread side by side.
@@ -21,7 +21,7 @@ cores of a 2-core machine is the other way to spend them than two runs of one th
 --train.minutes M` (each run's folder and the command that made it), such as a finalist trained alone.
 
 The runs take the cores this program may use, one each in order: two programs started side by side (two tasks, or
-one run each) must be given cores of their own, `taskset -c 0 python benchmarks/time_to_quality.py ...` beside
+one run each) must be given cores of their own, `taskset -c 0 python -m lab.studies.time_to_quality ...` beside
 `taskset -c 1 ...`, or both would pin their first run to the same core.
 """
 
@@ -39,6 +39,7 @@ from pathlib import Path
 from tax3d import kept, provenance
 from tax3d.atomic import write_json
 from tax3d.checkpoint import read_log
+from lab.studies import command_line
 
 
 def train_command(args, name: str, options: str) -> list[str]:
@@ -144,7 +145,7 @@ def main() -> int:
         print(f"time_to_quality: run(s) {', '.join(failed)} failed; see {args.out}/NAME.stderr", file=sys.stderr)
         return 1
     result = {
-        "benchmark": "time_to_quality", "command": "python benchmarks/time_to_quality.py " + shlex.join(sys.argv[1:]),
+        "benchmark": "time_to_quality", "command": command_line(__spec__.name, sys.argv[1:]),
         "cores_per_run": args.threads if len(args.run) * args.threads <= len(cores)
         else len(cores) / len(args.run), "threads_per_run": args.threads,
         "minutes": args.minutes, "preset": args.preset, "train": args.train, "val": args.val,

@@ -20,8 +20,9 @@ from tax3d import kept, provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.sim.env import HangClothEnv
 from tax3d.sim.generate import Args, generate
+from lab.studies import command_line
 
-DEFAULT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "tax3d-official" / "hangproccloth-simple"
+DEFAULT = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "tax3d-official" / "hangproccloth-simple"
 
 
 def mean_symmetric_nn(a: np.ndarray, b: np.ndarray) -> float:
@@ -83,7 +84,7 @@ def main() -> int:
         print(f"fidelity: error: {args.official}: official demonstrations not found", file=sys.stderr)
         return 2
     report = {
-        "command": "python " + " ".join(sys.argv),
+        "command": command_line(__spec__.name, sys.argv[1:]),
         "machine": provenance.machine(),
         "date": provenance.today(),
     }

@@ -1,7 +1,7 @@
 """How much of a task's goal variation a fixed goal explains: offline RMSE of mean goals, and the hook's share of
 the anchor cloud after farthest point sampling; prints one JSON object.
 
-    python benchmarks/goal_spread.py --data data/hangbag [--points 256 512]
+    python -m lab.studies.goal_spread --data data/hangbag [--points 256 512]
 
 - mean goal: the mean over DATA/train of the goal in the anchor frame (translation to the anchor's mean, the CD/CP
   frame), placed at each demo's anchor (`tax3d.metrics.MeanGoalBaseline`);
@@ -25,6 +25,7 @@ from tax3d import kept, provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.geometry import farthest_point_sample
 from tax3d.metrics import MeanGoalBaseline, rmse
+from lab.studies import command_line
 
 
 def rot_z(angle: float) -> np.ndarray:
@@ -51,7 +52,7 @@ def main() -> int:
     train = splits["train"]
     mean = MeanGoalBaseline.fit(train)
     turned = np.mean([(d["action_pc"] + d["flow"] - d["anchor_pc"].mean(0)) @ rot_z(d["rot"][2]) for d in train], 0)
-    out = {"command": "python " + " ".join(sys.argv), "date": provenance.today(), "splits": {}}
+    out = {"command": command_line(__spec__.name, sys.argv[1:]), "date": provenance.today(), "splits": {}}
     for name, demos in splits.items():
         goals = [d["action_pc"] + d["flow"] for d in demos]
         plain = [float(rmse(mean.predict(d["action_pc"], d["anchor_pc"]), g)) for d, g in zip(demos, goals)]

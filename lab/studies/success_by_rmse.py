@@ -1,7 +1,7 @@
 """Success of the policy against the RMSE of the goal it executed, from one `tax3d eval` run: how close a goal must be
 for the cloth to hang. Kept as a small JSON that a results page cites.
 
-    python benchmarks/success_by_rmse.py runs/eval-x docs/results/evals/NAME-success-by-rmse.json [--splits unseen,ood]
+    python -m lab.studies.success_by_rmse runs/eval-x docs/results/evals/NAME-success-by-rmse.json [--splits unseen,ood]
 
 Episodes are pooled over the splits and put in RMSE bins (--edges); each bin gives its episodes and success rate.
 The RMSE is the executed sample's (`executed_rmse`, recorded by `tax3d eval`), so runs made before it was recorded
@@ -18,6 +18,7 @@ from pathlib import Path
 
 from tax3d import kept, provenance
 from tax3d.atomic import write_text
+from lab.studies import command_line
 
 
 def bins(episodes: list[dict], edges: list[float], by: str = "executed_rmse") -> list[dict]:
@@ -60,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {source}: no episode of {', '.join(splits)} has an {args.by}; expected a run of "
               f"`tax3d eval` on demo folders", file=sys.stderr)
         return 2
-    record = {"command": "python benchmarks/success_by_rmse.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+    record = {"command": command_line(__spec__.name, sys.argv[1:] if argv is None else argv),
             "source": summary.get("command"), "checkpoint": summary.get("checkpoint"), "pooled_splits": splits,
             "samples": summary.get("args", {}).get("samples"), "select": summary.get("args", {}).get("select"),
             "episodes": len(chosen), "success_rate": sum(e["success"] for e in chosen) / len(chosen),
