@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from lab.results.build import main
+from tax3d import ledger
 from tax3d.kept import stamp
 from tests.conftest import one_line_error, tiny_model
 
@@ -176,7 +177,12 @@ def test_model_card_of_a_table_row_states_its_protocol_and_one_command(tmp_path,
     checkpoint(tmp_path, "tax3d-cd-x", data__task="hangproccloth-unimodal")
     sha = json.loads((tmp_path / "checkpoints" / "tax3d-cd-x" / "config.json").read_text())["weights_sha256"]
     card_spec = [{"checkpoint": "checkpoints/tax3d-cd-x", "row": "table/hangproccloth-unimodal/512/cd.json"}]
-    root = repository(tmp_path, card_spec, {"table/hangproccloth-unimodal/512/cd.json": table_row(sha)})
+    row = table_row(sha)
+    root = repository(tmp_path, card_spec, {"table/hangproccloth-unimodal/512/cd.json": row})
+    card = built(root, "tax3d-cd-x")
+    assert "demo_100-139, which no choice has touched, scored in no line of the ledger" in card  # the ledger counts
+    line = ledger.scoring(row["task"], 512, "cd", {**row, "weights_sha256": sha}, None, 100, row["command"])
+    ledger.append(root / "table" / "ledger.jsonl", line)
     card = built(root, "tax3d-cd-x")
     assert "trained on 512 of this project's demonstrations (the paper trains on 64)" in card
     assert "`unseen` and `ood` demo_100-139, which no choice has touched, scored once" in card
@@ -188,6 +194,8 @@ def test_model_card_of_a_table_row_states_its_protocol_and_one_command(tmp_path,
     assert "The row records it under the command's earlier name: `tax3d benchmark --task hangproccloth-unimodal" in card
     assert "On the same episodes" not in card  # no floor or ceiling scored yet
     assert main(["--root", str(root), "--check"]) == 0
+    ledger.append(root / "table" / "ledger.jsonl", line)  # scored again: the row's file may say once, the ledger not
+    assert "which no choice has touched, scored 2 times" in built(root, "tax3d-cd-x")
 
     # the floor and ceiling of the same table, once scored, bound the card's success
     for key, unseen, ood in (("floor", 0.35, 0.3), ("ceiling", 0.9, 0.875)):

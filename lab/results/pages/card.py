@@ -14,12 +14,13 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+from tax3d import ledger
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
 from lab.results import kept
 from lab.results.commands import renamed, shown
 from lab.results.pages.page import SPLITS, Page, cell
-from lab.results.table import NAMES, PAPER_KEYS
+from lab.results.table import NAMES, PAPER_KEYS, times
 
 
 CARDS = Path("pages") / "model-cards.toml"
@@ -162,15 +163,17 @@ def bounds_line(row: dict, bounds: dict[str, dict]) -> list[str]:
     return [f"On the same episodes ({' / '.join(row['splits'])}), {' and '.join(said)}.", ""] if said else []
 
 
-def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict, bounds: dict[str, dict] | None = None) -> str:
+def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict, bounds: dict[str, dict] | None = None,
+             scorings: int | None = None) -> str:
     """The card of weights shipped from a table row: its test episodes scored once, chosen on `val`, one command;
-    `bounds` the floor and ceiling rows of the same table, where they have been scored."""
+    `bounds` the floor and ceiling rows of the same table, where they have been scored; `scorings` the ledger's
+    count of the row's scorings (None: the row's own)."""
     task, key = row["task"], PAPER_KEYS[row["variant"]]
     name, paper = NAMES.get(key, key), paper_task.get("rows", {}).get(key)
     paper_demos = paper_task.get("demos", [None])[0]
     test, vals = row["test"], row["validations"]
     best = min(vals, key=lambda v: v["val_rmse"])
-    scored = "once" if test["scorings"] == 1 else f"{test['scorings']} times"
+    scored = times(test["scorings"] if scorings is None else scorings)
     lines = ["| split | episodes | success (95% interval) | paper success | goal RMSE | paper RMSE | coverage RMSE "
              "| precision RMSE |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for split, s in row["splits"].items():
@@ -238,8 +241,10 @@ class CardsPage(Page):
                                      f"expected {row['weights_sha256']}, the weights of the row {c['row']}")
                 bounds = {key: kept.read(path, ("table-row",)) for key in ("floor", "ceiling")
                           if (path := (self.root / c["row"]).parent / f"{key}.json").is_file()}
+                lines = ledger.of_row(ledger.read(self.root / "table" / "ledger.jsonl"), row["task"], row["num_train"],
+                                      row["variant"])
                 out[folder / "README.md"] = row_card(c["checkpoint"], config, row, self.paper_all.get(row["task"], {}),
-                                                     bounds).encode()
+                                                     bounds, len(lines)).encode()
                 continue
             summary = kept.load(self.root / c["eval"], ("eval",))
             records = kept.read(self.root / c["log"], ("train-log",))["records"] if c.get("log") else []
