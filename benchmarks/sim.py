@@ -18,7 +18,8 @@ import numpy as np
 from tax3d import provenance
 from tax3d import kept
 from tax3d.sim.cloth import SIMPLE_CLOTH
-from tax3d.sim.env import SIM_STEPS_PER_ACTION, env_class
+from tax3d.sim.env import SIM_STEPS_PER_ACTION
+from tax3d.sim.scenes import env_class
 from tax3d.sim.generate import Args, generate
 from tax3d.sim.tasks import get_task
 

@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from model import ATTENTION_FLOPS, best_time  # noqa: E402  (benchmarks/model.py)
 from tax3d import config as cfg  # noqa: E402
-from tax3d import distributed, provenance  # noqa: E402
+from tax3d import provenance  # noqa: E402
 from tax3d import kept  # noqa: E402
 from tax3d.data.dataset import DemoDataset  # noqa: E402
 from tax3d.model.tax3d import Tax3D  # noqa: E402
