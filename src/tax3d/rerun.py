@@ -4,6 +4,7 @@ other is refused, naming what differs, so that a folder's files never describe a
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 from pathlib import Path
@@ -33,6 +34,18 @@ def checkpoint_to_resume(out: Path, resume: bool, fresh: bool) -> Path | None:
     if resume and last is None:
         raise UsageError(f"--resume: {out} holds no checkpoint to continue from (expected {out / 'last' / STATE_NAME})")
     return last
+
+
+def resolve(configs, preset, overrides: dict, out: Path, last: Path | None, extend: bool = False):
+    """The command's configuration (`preset` with `overrides`); resuming, the run's saved one with them, after
+    checking that the command's equals it (check_same_run). `configs` is the config module of the run's kind
+    (tax3d.config, or DP3's), with its `validate` and `load`."""
+    command = configs.validate(cfg.apply_overrides(preset, **overrides), "options")
+    if last is None:
+        return command
+    saved = configs.load(last / "config.json")
+    check_same_run(out, cfg.read_json(last / "config.json"), saved, command, extend)
+    return configs.validate(cfg.apply_overrides(copy.deepcopy(saved), **overrides), "options")
 
 
 def differences(recorded: dict, saved: cfg.Config, command: cfg.Config,

@@ -185,12 +185,7 @@ def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.Config:
     """The command's configuration; resuming, the run's (its planned steps kept), which the command's must equal
     (tax3d.rerun), but for the options that change only how the run computes."""
     overrides = dict(model=args.model, diffusion=args.diffusion, data=args.data, train=args.train)
-    command = cfg.validate(cfg.apply_overrides(cfg.preset(default_preset(args.preset)), **overrides), "options")
-    if last is None:
-        return command
-    saved = cfg.load(last / "config.json")
-    rerun.check_same_run(out, cfg.read_json(last / "config.json"), saved, command, extend=args.resume)
-    return cfg.validate(cfg.apply_overrides(copy.deepcopy(saved), **overrides), "options")
+    return rerun.resolve(cfg, cfg.preset(default_preset(args.preset)), overrides, out, last, args.resume)
 
 
 def config_of_command(argv: list[str]) -> cfg.Config:

@@ -32,7 +32,6 @@ from tax3d.atomic import write_text
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
 from tax3d.baselines.dp3.model import DP3
-from tax3d.config import apply_overrides
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import data_task
 from tax3d.devices import machine_preset, pick_device
@@ -77,12 +76,7 @@ def resolve_config(args: Args, out: Path, last: Path | None) -> cfg.DP3Config:
     """The preset with the given options applied; resuming, the run's saved config (its planned steps kept), which
     the command's must equal (tax3d.rerun)."""
     overrides = dict(model=args.model, diffusion=args.diffusion, data=args.data, train=args.train)
-    command = cfg.validate(apply_overrides(cfg.preset(default_preset(args.preset)), **overrides), "options")
-    if last is None:
-        return command
-    saved = cfg.load(last / "config.json")
-    rerun.check_same_run(out, json.loads((last / "config.json").read_text()), saved, command, extend=args.resume)
-    return cfg.validate(apply_overrides(saved, **overrides), "options")
+    return rerun.resolve(cfg, cfg.preset(default_preset(args.preset)), overrides, out, last, args.resume)
 
 
 def default_preset(name: str | None) -> str:
