@@ -96,7 +96,3 @@ def os_failure(err: OSError) -> str:
 def failure(err: BaseException) -> str:
     text = str(err).strip().splitlines()
     return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
-
-
-if __name__ == "__main__":
-    sys.exit(main())
