@@ -7,11 +7,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 from tax3d.atomic import atomic_write
 from tax3d.errors import UsageError
+from tax3d.options import Positive
 
 
 def depth_to_cloud(depth, mask, intrinsics, pose) -> np.ndarray:
@@ -99,7 +101,7 @@ class Args:
     """a .npy (4, 4) camera-to-world matrix [[R, t], [0, 0, 0, 1]]"""
     out: str
     """the .npy file of the cloud (N, 3), written whole or not at all"""
-    depth_scale: float = 1.0
+    depth_scale: Annotated[float, Positive] = 1.0
     """multiplies the depth image first: 0.001 turns millimetres into metres"""
 
 
@@ -118,8 +120,6 @@ def _save(path: Path, cloud: np.ndarray) -> None:
 def run(args: Args) -> int:
     if not Path(args.out).parent.is_dir():
         raise UsageError(f"--out {args.out}: no folder {Path(args.out).parent}; expected a file in an existing folder")
-    if not (np.isfinite(args.depth_scale) and args.depth_scale > 0):
-        raise UsageError(f"--depth-scale {args.depth_scale}: expected a positive number")
     arrays = {name: _load(name, getattr(args, name)) for name in ("depth", "mask", "intrinsics", "pose")}
     try:
         if arrays["depth"].dtype.kind not in "iuf":

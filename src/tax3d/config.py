@@ -18,8 +18,13 @@ from typing import Annotated, Literal, Optional
 import tyro
 
 from tax3d.errors import UsageError
-from tax3d.options import Fraction, NonNegative, Positive, field_docs, problems
+from tax3d.options import Check, Fraction, NonNegative, Positive, field_docs, problems
 from tax3d.variants import variant_spec
+
+
+# the scaled linear schedule's last beta, 20 / T, must stay below 1
+Timesteps = Check(lambda v: isinstance(v, int) and v >= 21, "at least 21 (the scaled linear schedule's last beta, "
+                                                            "20 / T, must stay below 1)")
 
 
 @dataclass
@@ -37,12 +42,16 @@ class ModelConfig:
     mlp_ratio: Annotated[float, Positive] = 4.0
     """width of each block's MLP, times hidden_size"""
 
+    def conflicts(self):
+        if self.hidden_size % self.num_heads:
+            yield "hidden_size", self.hidden_size, f"expected a multiple of model.num_heads ({self.num_heads})"
+
 
 @dataclass
 class DiffusionConfig:
     """The diffusion process (docs/reference.md, Diffusion) and the default sampler of `predict`."""
 
-    num_timesteps: Annotated[int, Positive] = 100
+    num_timesteps: Annotated[int, Timesteps] = 100
     """diffusion steps of the training schedule (at least 21)"""
     learn_sigma: bool = True
     """the network also predicts each step's variance (trained with the variational bound term)"""
@@ -56,6 +65,10 @@ class DiffusionConfig:
     """denoising steps at prediction: fewer than num_timesteps respaces the schedule"""
     sampler: Literal["ddpm", "ddim"] = "ddpm"
     """the default sampler of prediction: ddpm (the paper's) or ddim (deterministic)"""
+
+    def conflicts(self):
+        if self.sample_steps > self.num_timesteps:
+            yield "sample_steps", self.sample_steps, f"expected at most diffusion.num_timesteps ({self.num_timesteps})"
 
 
 @dataclass
@@ -339,31 +352,12 @@ def load(path) -> Config:
 
 
 def validate(config: Config, where: str = "config") -> Config:
-    """Normalise the variant name and check values that would otherwise fail deep inside training."""
+    """The config with its variant's name normalised, once every value passes its checks (tax3d.options): a
+    UsageError naming the option (where is "options") or the field of the file `where` otherwise."""
     for name, value, problem in problems(config):
         raise UsageError(f"--{name.replace('_', '-')} {value}: {problem}" if where == "options"
                          else f"{where}: {name} = {value!r}: {problem}")
     config.model.variant = variant_spec(config.model.variant).name
-    checks = [
-        (config.model.hidden_size % max(config.model.num_heads, 1) == 0 and config.model.num_heads > 0,
-         "model.hidden_size must be a multiple of model.num_heads"),
-        (config.model.depth >= 1, "model.depth must be at least 1"),
-        (config.diffusion.num_timesteps >= 21, "diffusion.num_timesteps must be at least 21 (the scaled linear "
-                                               "schedule's last beta, 20 / T, must stay below 1)"),
-        (1 <= config.diffusion.sample_steps <= config.diffusion.num_timesteps,
-         "diffusion.sample_steps must lie in [1, diffusion.num_timesteps]"),
-        (config.data.num_action_points >= 1 and config.data.num_anchor_points >= 1,
-         "data.num_action_points and data.num_anchor_points must be positive"),
-        (config.train.batch_size >= 1, "train.batch_size must be positive"),
-        (config.train.steps >= 1, "train.steps must be positive"),
-        (config.train.minutes >= 0, "train.minutes must not be negative"),
-        (config.train.validations >= 0, "train.validations must not be negative"),
-        (0.0 <= config.train.ema < 1.0, "train.ema must lie in [0, 1)"),
-        (config.train.val_samples >= 1, "train.val_samples must be positive"),
-    ]
-    for ok, message in checks:
-        if not ok:
-            raise UsageError(f"{where}: {message}")
     return config
 
 

@@ -2,7 +2,9 @@
 
 `check(args)` walks a command's `Args` (and nested sections such as `train.lr`) and raises a `UsageError` naming
 the first option whose value is of the wrong kind, before any work starts. Output paths are checked for being
-writable the same way (`OutputFile`, `OutputFolder`), so a typo costs a second, not an hour of evaluation.
+writable the same way (`OutputFile`, `OutputFolder`), so a typo costs a second, not an hour of evaluation. A check
+that involves several options is a method `conflicts(self)` of the dataclass, yielding (option, value, problem)
+after its fields pass. The command line runs `check` on parsing, and so do the library functions that take `Args`.
 """
 
 from __future__ import annotations
@@ -74,13 +76,17 @@ def option_name(name: str) -> str:
 
 
 def problems(obj, prefix: str = ""):
-    """(option, value, problem) for every checked field of a dataclass instance and its nested sections."""
+    """(option, value, problem) for every checked field of a dataclass instance and its nested sections, then for
+    each of its `conflicts` (checks across fields, run once its own fields pass)."""
     hints = typing.get_type_hints(type(obj), include_extras=True)
+    passed = True
     for f in dataclasses.fields(obj):
         value = getattr(obj, f.name)
         name = prefix + f.name
         if dataclasses.is_dataclass(value):
-            yield from problems(value, name + ".")
+            for found in problems(value, name + "."):
+                passed = False
+                yield found
             continue
         if value is None:
             continue
@@ -88,7 +94,11 @@ def problems(obj, prefix: str = ""):
             if isinstance(marker, Check):
                 problem = marker.problem(value)
                 if problem:
+                    passed = False
                     yield name, value, problem
+    if passed and hasattr(obj, "conflicts"):
+        for name, value, problem in obj.conflicts():
+            yield prefix + name, value, problem
 
 
 def show(value) -> str:
@@ -98,7 +108,8 @@ def show(value) -> str:
 def check(obj, prefix: str = "") -> None:
     """Raise a UsageError naming the first option of obj whose value fails its checks."""
     for name, value, problem in problems(obj, prefix):
-        raise UsageError(f"{option_name(name)} {show(value)}: {problem}")
+        shown = show(value)
+        raise UsageError(f"{option_name(name)} {shown}: {problem}" if shown else f"{option_name(name)}: {problem}")
 
 
 def described(cls: type) -> type:

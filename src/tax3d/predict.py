@@ -28,7 +28,6 @@ from tax3d import kept, provenance
 from tax3d.atomic import atomic_write, write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
-from tax3d.errors import UsageError
 from tax3d.metrics import MeanGoalBaseline, medoid, rmse
 from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
@@ -73,8 +72,6 @@ class Args:
 
 
 def run(args: Args) -> int:
-    if args.samples < 1:
-        raise UsageError(f"--samples {args.samples}: expected a positive number")
     options.check(args)  # --out and --summary writable, numbers in range, also when called from Python
     if args.threads > 0:
         torch.set_num_threads(args.threads)

@@ -20,6 +20,7 @@ from tax3d.sim.cloth import validate_cloth_params
 from tax3d.sim.observe import CameraSpec
 from tax3d.sim.scenes import process_env
 from tax3d.sim.tasks import episode_params, get_split, get_task
+from tax3d import options
 from tax3d.options import NonNegative, OutputFolder, Positive
 
 
@@ -65,6 +66,17 @@ class Args:
     in OUT get theirs without simulating again"""
     camera: CameraSpec = field(default_factory=CameraSpec)
     """the cameras of --camera-out"""
+
+    def conflicts(self):
+        per = get_task(self.task).demos_per_cloth
+        if self.first_index % per:
+            yield "first_index", self.first_index, (f"{self.task} keeps {per} demonstrations of one cloth together; "
+                                                    f"expected a multiple of {per}")
+        if self.camera_out is not None and not self.camera.views:
+            yield "camera.views", self.camera.views, "none given; expected one or more of front, front-left, front-right, back"
+        if self.camera_out is not None and Path(self.camera_out).resolve() == Path(self.out).resolve():
+            yield "camera_out", self.camera_out, ("the folder of --out; expected a folder of its own (the camera "
+                                                  "demos keep the mesh demos' names)")
 
 
 @dataclass
@@ -195,12 +207,7 @@ def _replay_jobs(folder: Path, args: Args) -> list[Job]:
 def _generate_jobs(args: Args) -> list[Job]:
     task, split = get_task(args.task), get_split(args.split)
     num = task.sizes[split.name] if args.num is None else args.num
-    if num < 0:
-        raise UsageError(f"--num {num}: expected a non-negative number of demonstrations")
     per = task.demos_per_cloth
-    if args.first_index % per:
-        raise UsageError(f"--first-index {args.first_index}: {task.name} keeps {per} demonstrations of one cloth "
-                         f"together; expected a multiple of {per}")
     first, end = args.first_index, args.first_index + num
     jobs = []
     for c in range(first // per, math.ceil(end / per)):
@@ -211,25 +218,17 @@ def _generate_jobs(args: Args) -> list[Job]:
 
 def generate(args: Args, progress: bool = True) -> dict:
     """Plan, skip what is already there, run the rest; returns the summary statistics."""
+    options.check(args)
     check_backend(args.backend, args.workers, args.address)
-    if args.steps < 1:
-        raise UsageError(f"--steps {args.steps}: expected at least 1")
-    if args.max_attempts < 1:
-        raise UsageError(f"--max-attempts {args.max_attempts}: expected at least 1")
     if args.replay is not None:
         jobs = _replay_jobs(Path(args.replay), args)
     else:
         jobs = _generate_jobs(args)
         for job in jobs:
             job.floor = args.floor
-    if args.camera_out is not None and not args.camera.views:
-        raise UsageError("--camera.views: none given; expected one or more of front, front-left, front-right, back")
     _check_out(Path(args.out))
     if args.camera_out is not None:
         _check_out(Path(args.camera_out))
-        if Path(args.camera_out).resolve() == Path(args.out).resolve():
-            raise UsageError(f"--camera-out {args.camera_out}: the folder of --out; expected a folder of its own "
-                             f"(the camera demos keep the mesh demos' names)")
     for job in jobs:
         job.out, job.max_attempts, job.trajectories = str(args.out), args.max_attempts, args.trajectories
         job.render, job.render_every, job.steps = args.render, max(1, args.render_every), args.steps
