@@ -49,8 +49,25 @@ def test_no_command_prints_usage_and_fails(capsys):
     (["eval", "--checkpoint", "C", "--policy-offset", "nan", "0", "0"], "--policy-offset nan 0.0 0.0"),
     (["generate", "--render-every", "0"], "--render-every 0"),
     (["generate", "--num", "0"], "--num 0"),
+    (["cloud", "--depth", "d", "--mask", "m", "--intrinsics", "k", "--pose", "p", "--out", "c.npy",
+      "--depth-scale", "0"], "--depth-scale 0.0: expected a positive number"),
 ])
 def test_numbers_of_the_wrong_sign_or_kind(capsys, argv, expected):
+    one_line_error(capsys, argv, expected)
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["train", "--preset", "cpu", "--model.hidden-size", "100", "--model.num-heads", "3"],
+     "--model.hidden-size 100: expected a multiple of model.num_heads (3)"),
+    (["train", "--preset", "cpu", "--diffusion.num-timesteps", "20", "--diffusion.sample-steps", "10"],
+     "--diffusion.num-timesteps 20: expected at least 21"),
+    (["train", "--preset", "cpu", "--diffusion.sample-steps", "200"],
+     "--diffusion.sample-steps 200: expected at most diffusion.num_timesteps (100)"),
+    (["generate", "--task", "hangproccloth-multimodal", "--first-index", "3"], "--first-index 3: "),
+    (["generate", "--camera-out", "cams", "--camera.views"], "--camera.views: none given"),
+])
+def test_options_that_conflict_fail_as_one_option(capsys, argv, expected):
+    """A check across options (a dataclass's conflicts()) names one option, in the words of the field checks."""
     one_line_error(capsys, argv, expected)
 
 
