@@ -13,10 +13,12 @@ import json
 import types
 import typing
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Annotated, Literal, Optional
 
 import tyro
 
+from tax3d.atomic import write_text
 from tax3d.errors import UsageError
 from tax3d.options import Check, Fraction, NonNegative, Positive, field_docs, problems
 from tax3d.variants import variant_spec
@@ -332,8 +334,6 @@ def _type_name(hint) -> str:
 
 def read_json(path) -> dict:
     """A config file's JSON, with a one-line error naming the file when it cannot be read."""
-    from pathlib import Path
-
     path = Path(path)
     try:
         return json.loads(path.read_text())
@@ -342,8 +342,6 @@ def read_json(path) -> dict:
 
 
 def save(config: Config, path) -> None:
-    from tax3d.atomic import write_text
-
     write_text(path, json.dumps(to_dict(config), indent=2) + "\n")
 
 

@@ -11,13 +11,16 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
+from tqdm import tqdm
 
 from tax3d.data.format import SIM_KEYS, demo_index, is_valid_demo, list_demos, load_demo, save_demo
 from tax3d.errors import UsageError
 from tax3d.parallel import check_backend, run_each
 from tax3d.sim.bag import parse_bag_params
 from tax3d.sim.cloth import validate_cloth_params
-from tax3d.sim.observe import CameraSpec
+from tax3d.sim.episode import episode_to_demo, expert_policy, run_episode
+from tax3d.sim.observe import CameraSpec, camera_demo, camera_seed
+from tax3d.sim.render import render_frame, save_frames
 from tax3d.sim.scenes import process_env
 from tax3d.sim.tasks import episode_params, get_split, get_task
 from tax3d import options
@@ -114,8 +117,6 @@ class JobResult:
 
 def run_job(job: Job) -> JobResult:
     """Run the expert on one cloth (every hole of a multimodal pair); save only when all its episodes succeed."""
-    from tax3d.sim.episode import episode_to_demo, expert_policy, run_episode
-    from tax3d.sim.render import render_frame, save_frames
 
     env = process_env(job.floor, get_task(job.task).scene)
     result = JobResult(job.names, camera_only=job.camera_only)
@@ -167,7 +168,6 @@ def run_job(job: Job) -> JobResult:
 
 def _write_camera_demo(env, job: Job, name: str, demo: dict) -> None:
     """The demo as the cameras see it at the start (tax3d.sim.observe): the scene reset to the demo's start."""
-    from tax3d.sim.observe import camera_demo, camera_seed
 
     env.reset(demo["deform_params"], float(demo["rot"][2]), demo["trans"])
     rng = camera_seed(job.task, job.split, demo_index(name) // get_task(job.task).demos_per_cloth)
@@ -266,8 +266,6 @@ def _worst(figures: list[dict]) -> dict:
 
 
 def _run(jobs: list[Job], args: Args, progress: bool) -> list[JobResult]:
-    from tqdm import tqdm
-
     bar = tqdm(total=len(jobs), desc="episodes", unit="cloth", disable=not progress or not jobs, file=sys.stderr)
     results = []
     # a process of its own for each cloth: its demonstrations are then the same however the jobs fall to workers
