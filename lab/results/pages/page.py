@@ -6,17 +6,24 @@ JSON; optional `config`, a kept `tax3d train` config.json read as `{id.config...
 NOTE_WORDS words, optional `section`) and `detail` (title, text: the longer explanations, all in one folded section).
 `{id.split.metric}` reads a split of a kept evaluation (`success` for success_rate), `{id.key.key}` any key of a kept
 JSON, `{paper.ROW.metric.split}` the paper's table of the page's `task`; `{...:.3f}` formats.
+
+What every page says is written once, in shared.toml beside this module: a note may be `shared = "NAME"` with the
+ids its slots name (the note's title and text come from `[note.NAME]`), and a source that is a row of `tax3d table
+--keep` needs no label.
 """
 
 from __future__ import annotations
 
 import re
+import tomllib
+from functools import cache
 from pathlib import Path
 
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
 from lab.results import kept
 from lab.results.commands import shown
+from lab.results.table import NAMES, PAPER_KEYS
 
 SPLITS = ("train", "unseen", "ood")
 ALIASES = {"success": "success_rate"}
@@ -24,6 +31,24 @@ PLACEHOLDER = re.compile(r"\{([A-Za-z][\w-]*(?:\.[\w-]+)+)(?::([^{}]+))?\}")
 NOTE_WORDS = 50
 VERDICT_SENTENCES = 2
 SENTENCE_END = re.compile(r"[.!?](?=\s+[A-Z`*(\[]|\s*$)")
+TABLE_ROW = re.compile(r"table/[\w-]+/(\d+)/(\w+)\.json")
+
+
+@cache
+def shared() -> dict:
+    """The text every page, or every page of a kind, shares (shared.toml beside this module)."""
+    return tomllib.loads(Path(__file__).with_name("shared.toml").read_text())
+
+
+def slots(text: str, values: dict[str, str]) -> str:
+    """`text` with each `{name}` slot filled from `values`, and each placeholder `{name.key}` read from the id
+    `values[name]`; other braces stay."""
+    def sub(m: re.Match) -> str:
+        name, end = m.groups()
+        if name not in values:
+            return m.group(0)
+        return values[name] if end == "}" else "{" + values[name] + "."
+    return re.sub(r"\{(\w+)([}.])", sub, text)
 
 
 def fold(summary: str, lines: list[str]) -> list[str]:
@@ -62,6 +87,10 @@ class Page:
         self.file, self.root, self.name, self.spec = file, root, file.stem, spec
         self.paper_all, self.paper = paper, paper.get(spec.get("task", ""), {"rows": {}})
         self.rows, self.curves = spec.get("row", []), spec.get("curve", [])
+        spec["note"] = [self._shared_note(note) for note in spec.get("note", [])]
+        for source in spec.get("source", []):
+            if "label" not in source:
+                source["label"] = self._source_label(source)
         self.data = {}
         curve_kinds = ("val-curve", "train-log")
         for what, items, kinds in (("row", self.rows, self.row_kinds), ("curve", self.curves, curve_kinds),
@@ -73,6 +102,32 @@ class Page:
             if words > NOTE_WORDS:
                 raise UsageError(f"{file.name}: note {note['title']!r}: {words} words; expected at most {NOTE_WORDS} "
                                  "(a longer text is a [[detail]], in the page's folded section)")
+
+    def _shared_note(self, note: dict) -> dict:
+        """A note as declared, or a shared one (`shared = "NAME"`) with its slots read from the note's ids; the
+        sources those ids name get the shared label of their slot where they declare none."""
+        if "shared" not in note:
+            return note
+        template = shared()["note"].get(note["shared"])
+        if template is None:
+            raise UsageError(f"{self.file.name}: note shared = {note['shared']!r}: expected one of "
+                             f"{', '.join(shared()['note'])}")
+        ids = {k: v for k, v in note.items() if k not in ("shared", "section")}
+        for source in self.spec.get("source", []):
+            slot = next((k for k, v in ids.items() if v == source["id"] and k in template), None)
+            if slot and "label" not in source:
+                source["label"] = template[slot]
+        return {"title": template["title"], "text": slots(template["text"], ids),
+                "section": note.get("section", template.get("section"))}
+
+    def _source_label(self, source: dict) -> str:
+        m = TABLE_ROW.fullmatch(source.get("summary", ""))
+        if not m:
+            raise UsageError(f"{self.file.name}: source {source.get('id')!r}: no label; expected one (only a row of "
+                             "`tax3d table --keep`, table/TASK/DEMOS/VARIANT.json, goes without)")
+        key = PAPER_KEYS.get(m.group(2), m.group(2))
+        name = key if key in ("floor", "ceiling") else NAMES.get(key, key)
+        return slots(shared()["source"]["table-row"], {"name": name, "demos": m.group(1)})
 
     def _load(self, what: str, item: dict, kinds: tuple[str, ...]) -> dict:
         path = self.root / item["summary"]

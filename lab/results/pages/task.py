@@ -2,9 +2,11 @@
 then every row, the ablations, coverage and precision, validation curves, the notes and every command.
 
 Beside what every declaration holds (lab.results.pages.page), a task page's holds `task` (its key in paper.toml),
-`definitions`, `headline` (at most 8 row ids or `paper:ROW`), optional `readme`, `setup`, `sets`, `sets_note`,
-`spread_note`, and arrays of tables `row` (id, label, summary: a kept evaluation, optional paper, group =
-"ablation", made, config, shipped), `curve` (id, label, summary: a kept validation curve or training log) and `draw`
+`headline` (at most 8 row ids or `paper:ROW`), optional `grip` and `check` (the policy's targets and the success check
+where they differ from shared.toml's), `definitions` (said after the shared ones), `readme`, `setup`, `sets`,
+`sets_note` (after the shared definition of coverage and precision), `spread_note`, and arrays of tables `row` (id,
+label: a fixed-goal row's defaults to shared.toml's, summary: a kept evaluation, optional paper, group = "ablation",
+made, config, shipped), `curve` (id, label, summary: a kept validation curve or training log) and `draw`
 (demos, and the digests of train, val, unseen and ood: the draw of the demonstrations that table of the protocol
 names, lab.results.table.check_draw). Where `tax3d table --keep` has kept rows for the task
 (docs/results/table/TASK/), the paper's table under that one protocol comes first, each row's scorings from the
@@ -22,18 +24,37 @@ from lab.results import table
 from lab.results.commands import EARLIER, shown
 from lab.results.pages import plots
 from lab.results.pages.card import shipped_rows
-from lab.results.pages.page import SPLITS, Page, cell, fold
+from lab.results.pages.page import SPLITS, Page, cell, fold, shared, slots
 
 VARIANT_NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP"}
 
 
 class TaskPage(Page):
-    required = ("title", "task", "verdict", "definitions", "headline")
+    required = ("title", "task", "verdict", "headline")
 
     def __init__(self, *args):
         super().__init__(*args)
         if len(self.spec.get("headline", ())) > 8:
             raise UsageError(f"{self.file.name}: headline has {len(self.spec['headline'])} rows; expected at most 8")
+        goals = shared()["task"]["goal"]
+        for row in self.rows:
+            if "label" not in row:
+                goal = self.data[row["id"]].get("goal")
+                if goal not in goals:
+                    raise UsageError(f"{self.file.name}: row {row['id']!r}: no label; expected one (only a "
+                                     f"fixed-goal row, goal {' or '.join(goals)}, goes without)")
+                row["label"] = goals[goal]
+
+    def definitions(self) -> str:
+        """The shared definitions of RMSE, success and the checkpoints, then the page's own."""
+        text, spec = shared()["task"], self.spec
+        last = any("last weights" in row["label"] for row in self.rows)
+        said = slots(text["definitions"], {"grip": spec.get("grip", text["grip"]),
+                                           "check": spec.get("check", text["check"]), "but": text["but"] if last else ""})
+        return self.fill(" ".join([said.strip(), spec.get("definitions", "").strip()]))
+
+    def sets_note(self) -> str:
+        return self.fill(" ".join([shared()["task"]["sets"].strip(), self.spec.get("sets_note", "").strip()]))
 
     def metrics(self, ref: str) -> tuple[str, list, list, str]:
         """(label, rmse per split, success per split, episodes) of a row id or of `paper:ROW`."""
@@ -187,7 +208,7 @@ class TaskPage(Page):
     def markdown(self) -> str:
         spec = self.spec
         lines = [self.verdict(), "", *self.table(spec["headline"]), "",
-                 f"![success per split]({self.name}.png)", "", self.fill(spec["definitions"]), "", *self.notes(),
+                 f"![success per split]({self.name}.png)", "", self.definitions(), "", *self.notes(),
                  "## Every row", "", f"The paper's rows are from its {self.paper.get('table', 'tables')} "
                  "(docs/results/paper.toml).", "",
                  *fold(f"All {len(self.full_refs('tax3d'))} rows of TAX3D, its baselines and the fixed goals",
@@ -196,7 +217,7 @@ class TaskPage(Page):
             lines += ["## Ablations", "", *fold("The ablations beside the paper's",
                                                  self.table(self.full_refs("ablation")))]
         if spec.get("sets"):
-            lines += ["## Coverage and precision RMSE", "", self.fill(spec["sets_note"]), "",
+            lines += ["## Coverage and precision RMSE", "", self.sets_note(), "",
                       *fold("Coverage and precision RMSE of every row", self.sets_table())]
         if spec.get("spread_note"):
             title = spec.get("spread_title", "How far a fixed goal gets")
