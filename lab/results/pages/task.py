@@ -51,6 +51,9 @@ class TaskPage(Page):
         last = any("last weights" in row["label"] for row in self.rows)
         said = slots(text["definitions"], {"grip": spec.get("grip", text["grip"]),
                                            "check": spec.get("check", text["check"]), "but": text["but"] if last else ""})
+        goals = {self.data[row["id"]].get("goal") for row in self.rows}
+        fixed = "; ".join(what for goal, what in text["fixed-goal"].items() if goal in goals)
+        said += " " + slots(text["fixed"], {"goals": fixed}) if fixed else ""
         return self.fill(" ".join([said.strip(), spec.get("definitions", "").strip()]))
 
     def sets_note(self) -> str:
