@@ -46,15 +46,17 @@ class TaskPage(Page):
                 row["label"] = goals[goal]
 
     def definitions(self) -> str:
-        """The shared definitions of RMSE, success and the checkpoints, then the page's own."""
+        """The shared definitions of RMSE, success, the checkpoints and the page's kinds of fixed goal, then the
+        page's own, each a paragraph."""
         text, spec = shared()["task"], self.spec
         last = any("last weights" in row["label"] for row in self.rows)
-        said = slots(text["definitions"], {"grip": spec.get("grip", text["grip"]),
-                                           "check": spec.get("check", text["check"]), "but": text["but"] if last else ""})
+        measures = slots(text["definitions"], {"grip": spec.get("grip", text["grip"]),
+                                               "check": spec.get("check", text["check"]),
+                                               "but": text["but"] if last else ""})
         goals = {self.data[row["id"]].get("goal") for row in self.rows}
         fixed = "; ".join(what for goal, what in text["fixed-goal"].items() if goal in goals)
-        said += " " + slots(text["fixed"], {"goals": fixed}) if fixed else ""
-        return self.fill(" ".join([said.strip(), spec.get("definitions", "").strip()]))
+        parts = [measures, slots(text["fixed"], {"goals": fixed}) if fixed else "", spec.get("definitions", "")]
+        return "\n\n".join(self.fill(part) for part in parts if part.strip())
 
     def sets_note(self) -> str:
         return self.fill(" ".join([shared()["task"]["sets"].strip(), self.spec.get("sets_note", "").strip()]))
