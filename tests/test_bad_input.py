@@ -266,7 +266,7 @@ def test_commands_are_quiet():
 
 
 def test_generate_with_nothing_left_to_do_says_so(tmp_path, capsys, monkeypatch):
-    from tax3d.sim import generate
+    from tax3d.cli import generate
 
     stats = {"episodes": 0, "successes": 0, "success_rate": float("nan"), "seconds_per_episode": float("nan"),
              "exploded": 0, "broken": 0, "written": 0, "skipped": 40, "failed": []}

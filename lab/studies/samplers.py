@@ -19,9 +19,8 @@ from tax3d import provenance
 from tax3d import kept
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
-from tax3d.metrics import rmse
 from tax3d.model.tax3d import Tax3D
-from tax3d.predict import medoid_rmse
+from tax3d.metrics import medoid_rmse, rmse
 from lab.studies import command_line
 
 SAMPLERS = ((10, "ddpm"), (10, "ddim"), (100, "ddpm"))  # (steps, sampler)

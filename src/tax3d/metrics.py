@@ -113,3 +113,8 @@ class MeanGoalBaseline:
         nearest = [goal[((action[:, None] - start[None]) ** 2).sum(-1).argmin(1)]
                    for start, goal in zip(self.starts, self.goals)]
         return np.mean(nearest, axis=0) + center
+
+
+def medoid_rmse(goals: list[np.ndarray], errors: np.ndarray) -> float:
+    """Mean over demos of the RMSE of each demo's medoid sample (the one with the least summed RMSE to the others)."""
+    return float(np.mean([e[medoid(g)] for g, e in zip(goals, errors)]))

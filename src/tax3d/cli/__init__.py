@@ -12,11 +12,11 @@ from tax3d.atomic import WriteError
 from tax3d.errors import UsageError
 
 COMMANDS = {
-    "generate": ("tax3d.sim.generate", "generate demonstrations in the official file layout"),
+    "generate": ("tax3d.cli.generate", "generate demonstrations in the official file layout"),
     "train": ("tax3d.train", "train a TAX3D variant on demonstration folders"),
     "train-dp3": ("tax3d.baselines.dp3.train", "train the DP3 baseline on demonstrations with trajectories"),
-    "predict": ("tax3d.predict", "predict goal clouds for demonstration files with a checkpoint"),
-    "cloud": ("tax3d.camera", "turn a depth image, its mask, intrinsics and camera pose into a world-frame cloud"),
+    "predict": ("tax3d.cli.predict", "predict goal clouds for demonstration files with a checkpoint"),
+    "cloud": ("tax3d.cli.cloud", "turn a depth image, its mask, intrinsics and camera pose into a world-frame cloud"),
     "eval": ("tax3d.evaluate", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
     "table": ("tax3d.table", "the paper's table of a task: generate, train and score each row, resumable"),
     "demo": ("tax3d.demo", "the main job on the embedded default"),

@@ -28,7 +28,7 @@ from tax3d import kept, provenance
 from tax3d.atomic import atomic_write, write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
-from tax3d.metrics import MeanGoalBaseline, medoid, rmse
+from tax3d.metrics import MeanGoalBaseline, medoid_rmse, rmse
 from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
 from tax3d import options
@@ -101,18 +101,13 @@ def run(args: Args) -> int:
         write_npz(Path(args.out), goals, files, errors)
         print(f"predictions: {args.out}", file=sys.stderr)
     if args.summary:
-        record = kept.stamp("predict", 1, {**provenance.made("tax3d.predict"), "checkpoint": str(args.checkpoint),
+        record = kept.stamp("predict", 1, {**provenance.made("tax3d.cli.predict"), "checkpoint": str(args.checkpoint),
                                            **summary})
         Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
         write_text(args.summary, json.dumps(record, indent=1) + "\n")
         print(f"summary: {args.summary}", file=sys.stderr)
     print(json.dumps(summary))
     return 0
-
-
-def medoid_rmse(goals: list[np.ndarray], errors: np.ndarray) -> float:
-    """Mean over demos of the RMSE of each demo's medoid sample (the one with the least summed RMSE to the others)."""
-    return float(np.mean([e[medoid(g)] for g, e in zip(goals, errors)]))
 
 
 def write_npz(path: Path, goals: list[np.ndarray], files: list[Path], errors: np.ndarray) -> None:
@@ -129,8 +124,3 @@ def write_npz(path: Path, goals: list[np.ndarray], files: list[Path], errors: np
 
     atomic_write(path, write)
 
-
-if __name__ == "__main__":
-    import tyro
-
-    sys.exit(run(tyro.cli(Args)))
