@@ -19,11 +19,12 @@ from tax3d import kept
 from tax3d.demo import SHIPPED
 
 ROOT = Path(__file__).resolve().parents[1]
-from tax3d.evaluate import Args, plan_jobs, run_jobs
+from tax3d.cli.eval import Args, plan
+from tax3d.eval.runner import run_jobs
 
 
 def timed(args: Args, workers: int) -> tuple[float, list[dict]]:
-    jobs = plan_jobs(args)
+    jobs = plan(args)
     for job in jobs:
         job.denoising = False
     start = time.perf_counter()

@@ -1,4 +1,4 @@
-"""Enter into an empty ledger (tax3d.ledger) the scorings of test episodes made before it existed, from git history.
+"""Enter into an empty ledger (tax3d.eval.ledger) the scorings of test episodes made before it existed, from git history.
 
     python scripts/ledger_history.py [--ledger docs/results/table/ledger.jsonl]
 
@@ -18,7 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from tax3d import ledger  # noqa: E402
+from tax3d.eval import ledger  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLE = "docs/results/table"

@@ -149,7 +149,7 @@ def demos(tmp_path):
 
 @pytest.fixture(autouse=True)
 def own_ledger(tmp_path_factory, monkeypatch):
-    """Each test's scorings of test episodes go to a ledger of its own, never to the repository's (tax3d.ledger);
+    """Each test's scorings of test episodes go to a ledger of its own, never to the repository's (tax3d.eval.ledger);
     the variable reaches the commands a test runs in a process of their own too."""
     path = tmp_path_factory.mktemp("ledger") / "ledger.jsonl"
     monkeypatch.setenv("TAX3D_LEDGER", str(path))

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from tax3d.baselines.dp3 import DP3, DP3Policy, is_dp3_checkpoint
+from tax3d.baselines.dp3 import DP3, is_dp3_checkpoint
+from tax3d.policies.dp3 import DP3Policy
 from tax3d.baselines.dp3 import config as cfg
 from tax3d.baselines.dp3.dataset import TrajectoryDataset, rotate_batch
 from tax3d.baselines.dp3.network import ConditionalUnet1D
@@ -362,7 +363,7 @@ def test_bad_inputs(tmp_path, capsys):
 
 
 def test_policy_acts_in_a_real_rollout_and_through_eval(tmp_path, monkeypatch):
-    from tax3d import evaluate as ev
+    from tax3d.cli import eval as ev
     from tax3d.sim import episode as sim_episode
     from tax3d.sim.scenes import process_env
 

@@ -9,7 +9,11 @@ import torch
 
 from tax3d import config as cfg
 from tax3d.cli import main
-from tax3d.evaluate import Args, EvalJob, evaluate, format_table, run_jobs, summarise
+from tax3d.cli.eval import Args, evaluate, plan
+from tax3d.eval.jobs import EvalJob
+from tax3d.eval.runner import run_jobs
+from tax3d.eval.summary import format_table, summarise
+from tax3d.policies.goal import Sampling
 from tax3d.model.tax3d import Tax3D
 from tax3d.sim.cloth import SIMPLE_CLOTH
 
@@ -124,11 +128,10 @@ def test_bad_inputs(capsys, checkpoint, tmp_path):
 
 
 def test_policy_offset_reaches_the_jobs_and_the_gripper_targets(checkpoint):
-    from tax3d.evaluate import plan_jobs
     from tax3d.policies.goal import GoalPolicy
 
-    default = plan_jobs(Args(checkpoint=checkpoint, task="hangbag", splits="unseen", episodes=1))
-    chosen = plan_jobs(Args(checkpoint=checkpoint, task="hangbag", splits="unseen", episodes=1,
+    default = plan(Args(checkpoint=checkpoint, task="hangbag", splits="unseen", episodes=1))
+    chosen = plan(Args(checkpoint=checkpoint, task="hangbag", splits="unseen", episodes=1,
                             policy_offset=(0.0, 0.0, 0.5)))
     assert default[0].offset is None and chosen[0].offset == (0.0, 0.0, 0.5)
 
@@ -174,7 +177,7 @@ def test_the_policy_executes_the_first_sample():
             return np.zeros((4, 3))
 
     state = type("State", (), {"cloth": np.arange(9.0).reshape(3, 3)})()
-    first = GoalPolicy(Spread(), num_samples=5)(Env(), state)
+    first = GoalPolicy(Spread(), Sampling(samples=5))(Env(), state)
     assert first.first_prediction.shape == (5, 3, 3)
     assert np.allclose(first.targets(state.cloth), state.cloth[[0, 2]] + 5.0)
 
@@ -190,16 +193,15 @@ def _policy_goals(model, cloth, anchor, **options):
             return anchor
 
     state = type("State", (), {"cloth": cloth})()
-    policy = GoalPolicy(model, num_samples=2, steps=3, seed=5, **options)(Env(), state)
+    policy = GoalPolicy(model, Sampling(samples=2, steps=3, seed=5, **options))(Env(), state)
     return policy.first_prediction, model.predict(cloth, anchor, num_samples=2, steps=3, seed=5, **options)
 
 
 def test_sampler_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
-    from tax3d.evaluate import plan_jobs
     from tax3d.policies.load import load_model
 
-    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].sampler is None
-    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, sampler="ddim"))[0].sampler == "ddim"
+    assert plan(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].sampling.sampler is None
+    assert plan(Args(checkpoint=checkpoint, splits="unseen", episodes=1, sampler="ddim"))[0].sampling.sampler == "ddim"
     # predicting the noise, where the untrained network's zero output leaves the samplers' noise in the goals
     model = load_model(tiny_checkpoint(tmp_path / "epsilon"))
     rng = np.random.default_rng(0)
@@ -212,11 +214,10 @@ def test_sampler_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
 
 
 def test_max_points_reaches_the_jobs_and_the_model(checkpoint, tmp_path):
-    from tax3d.evaluate import plan_jobs
     from tax3d.policies.load import load_model
 
-    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].max_points is None
-    assert plan_jobs(Args(checkpoint=checkpoint, splits="unseen", episodes=1, max_points=0))[0].max_points == 0
+    assert plan(Args(checkpoint=checkpoint, splits="unseen", episodes=1))[0].sampling.max_points is None
+    assert plan(Args(checkpoint=checkpoint, splits="unseen", episodes=1, max_points=0))[0].sampling.max_points == 0
     model = load_model(tiny_checkpoint(tmp_path / "epsilon"))  # trained on 64 action points
     rng = np.random.default_rng(0)
     cloth, anchor = rng.normal(size=(100, 3)), rng.normal(size=(30, 3))
@@ -268,7 +269,6 @@ def test_first_index_picks_the_test_episodes_of_a_demo_folder(tmp_path):
     """--first-index 100 --episodes 2 scores demo_100 and demo_101 of the folder, never demo_0 ...; a folder with no
     demo from that index on is a one-line error."""
     from tax3d.data.format import save_demo
-    from tax3d.evaluate import plan_jobs
     from tax3d.errors import UsageError
 
     from tests.conftest import make_demo
@@ -276,14 +276,14 @@ def test_first_index_picks_the_test_episodes_of_a_demo_folder(tmp_path):
     (tmp_path / "unseen").mkdir()
     for i in (0, 1, 100, 101, 102):
         save_demo(tmp_path / "unseen" / f"demo_{i}.npz", make_demo())
-    names = lambda **kw: [j.name for j in plan_jobs(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", **kw))]
+    names = lambda **kw: [j.name for j in plan(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", **kw))]
     assert names(first_index=100, episodes=2) == ["demo_100", "demo_101"]
     assert names(first_index=100) == ["demo_100", "demo_101", "demo_102"]
     assert names(episodes=2) == ["demo_0", "demo_1"]
-    jobs = plan_jobs(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", first_index=100, seed=7))
-    assert [j.seed for j in jobs] == [107, 108, 109]  # the seed follows the demo's index, not its position
+    jobs = plan(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", first_index=100, seed=7))
+    assert [j.sampling.seed for j in jobs] == [107, 108, 109]  # the seed follows the demo's index, not its position
     with pytest.raises(UsageError, match="no demo files from demo_200.npz on"):
-        plan_jobs(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", first_index=200))
+        plan(Args(checkpoint=tmp_path, data=tmp_path, splits="unseen", first_index=200))
 
 
 def test_success_interval_is_wilsons():
@@ -313,7 +313,7 @@ def test_an_interrupted_evaluation_resumes_with_the_missing_episodes(generated, 
     uninterrupted run scores."""
     import shutil
 
-    from tax3d import episodes
+    from tax3d.eval import episodes
     from tax3d.sim import episode
 
     folder, _ = generated
@@ -357,17 +357,17 @@ def test_warnings_of_the_episodes_are_said_once_by_the_command(monkeypatch):
     import types
     import warnings
 
-    from tax3d import evaluate
+    from tax3d.eval import runner
     from tax3d.extent import ExtentWarning
 
     def episode(job):
         warnings.warn("the action cloud is far off", ExtentWarning)
         return {"split": job.split, "name": job.name}
 
-    monkeypatch.setattr(evaluate, "episode", episode)
+    monkeypatch.setattr(runner, "episode", episode)
     jobs = [types.SimpleNamespace(split="val", name=f"demo_{i}") for i in range(3)]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("default")
-        results = evaluate.run_jobs(jobs, 1, progress=False)
+        results = runner.run_jobs(jobs, 1, progress=False)
     assert [str(w.message) for w in caught] == ["the action cloud is far off (in 3 of 3 episodes)"]
     assert results == [{"split": "val", "name": f"demo_{i}"} for i in range(3)]

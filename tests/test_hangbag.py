@@ -164,9 +164,9 @@ def test_goal_policy_adds_the_task_offset_to_the_predicted_grip_vertices():
 
 
 def test_eval_plans_hangbag_episodes_with_the_bag_and_task():
-    from tax3d.evaluate import Args, plan_jobs
+    from tax3d.cli.eval import Args, plan
 
-    jobs = plan_jobs(Args(checkpoint=Path("unused"), task="hangbag", splits="unseen,ood", episodes=2))
+    jobs = plan(Args(checkpoint=Path("unused"), task="hangbag", splits="unseen,ood", episodes=2))
     assert [j.split for j in jobs] == ["unseen", "unseen", "ood", "ood"]
     assert all(j.task == "hangbag" and j.cloth_params == FIXED_BAG for j in jobs)
     assert jobs[0].rot_z == episode_params(get_task("hangbag"), get_split("unseen"), 0).rot_z

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from tax3d import ledger
+from tax3d.eval import ledger
 from tax3d.errors import UsageError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -44,7 +44,7 @@ def test_the_ledger_refuses_a_rewrite_of_an_earlier_line(tmp_path, change):
 
 
 def test_eval_records_only_the_tables_test_indices(tmp_path, own_ledger):
-    from tax3d.evaluate import Args
+    from tax3d.cli.eval import Args
 
     summary = {"date": "2026-12-06", "weights_sha256": None, "command": "tax3d eval ...", "checkpoint": None,
                "goal": "mean", "splits": {"train": {"episodes": 40, "success_rate": 0.5},

@@ -15,7 +15,7 @@ import pytest
 import tyro
 
 from tax3d import config as cfg
-from tax3d import table
+from tax3d.cli import table
 from lab.results.commands import parses
 from tax3d.train import config_of_command, resolve_config
 

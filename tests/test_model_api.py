@@ -11,7 +11,8 @@ import torch
 
 from tax3d.cli import main
 from tax3d.data.format import save_demo
-from tax3d.metrics import MeanGoalBaseline, coverage_rmse, medoid, min_of_samples_rmse, precision_rmse, rmse
+from tax3d.policies.fixed import MeanGoalBaseline
+from tax3d.metrics import coverage_rmse, medoid, min_of_samples_rmse, precision_rmse, rmse
 from tax3d.model.tax3d import CheckpointError, Tax3D
 
 from tests.conftest import N, scene, synthetic_demo, tiny_model

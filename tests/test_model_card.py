@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from lab.results.build import main
-from tax3d import ledger
+from tax3d.eval import ledger
 from tax3d.kept import stamp
 from tests.conftest import one_line_error, tiny_model
 

@@ -171,8 +171,8 @@ def test_the_policy_drives_the_grippers_to_the_goals_of_the_observed_points_near
 def test_eval_scores_camera_demos_with_the_simulators_success_check(generated, tmp_path):
     """The demos' own goals, executed from the camera's cloud: the grippers take the observed points nearest the
     grasped vertices, and the simulator judges the cloth."""
-    from tax3d.evaluate import Args as EvalArgs
-    from tax3d.evaluate import evaluate
+    from tax3d.cli.eval import Args as EvalArgs
+    from tax3d.cli.eval import evaluate
     from tax3d.sim.generate import Args, generate
 
     out, _ = generated

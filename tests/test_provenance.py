@@ -41,5 +41,5 @@ def test_the_command_is_the_one_being_run_and_no_other(tmp_path, capsys):
 
     assert provenance.command("tax3d.predict") == "tax3d.predict, called from Python"
     assert main(["predict", "--checkpoint", str(tmp_path / "none"), "--demos", str(tmp_path)]) == 2  # a usage error
-    made = provenance.made("tax3d.evaluate")  # after it, from Python: not the command that ran before
-    assert made["command"] == "tax3d.evaluate, called from Python" and "cores" in made["machine"] and made["date"]
+    made = provenance.made("tax3d.cli.eval")  # after it, from Python: not the command that ran before
+    assert made["command"] == "tax3d.cli.eval, called from Python" and "cores" in made["machine"] and made["date"]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tax3d.report import _pick_figures, denoising_figure, write_report
+from tax3d.eval.report import _pick_figures, denoising_figure, write_report
 
 N, M, S, K = 50, 80, 3, 5
 SPLITS = ("train", "unseen", "ood")
@@ -173,7 +173,7 @@ def test_fresh_poses_promise_no_true_goal(tmp_path):
     the overview's legend has no true-goal entry."""
     import numpy as np
 
-    from tax3d.report import NO_TRUE_GOAL, overview_png
+    from tax3d.eval.report import NO_TRUE_GOAL, overview_png
 
     rng = np.random.default_rng(0)
     fresh = [_episode(rng, "unseen", f"episode_{i}", True, true_goal=False) for i in range(2)]

@@ -655,7 +655,7 @@ def test_training_page_without_its_markers_is_a_one_line_error(measured, capsys)
 
 def test_the_readme_row_is_the_protocols_cd_once_it_is_run(root):
     """Before the table has a TAX3D-CD row the README shows the declared row; after, the protocol's, with intervals."""
-    from tax3d import ledger
+    from tax3d.eval import ledger
     from tests.test_table import row, scored
 
     def readme_row() -> str:

@@ -8,6 +8,7 @@ import pytest
 from lab.results import table
 from lab.results.build import ROOT
 from tax3d.errors import UsageError
+from tax3d.variants import paper_key
 
 
 def row(variant: str, success: float, episodes: int = 40) -> dict:
@@ -26,7 +27,7 @@ def row(variant: str, success: float, episodes: int = 40) -> dict:
 
 def scored(kept: dict, num_train: int = 64, **changes) -> dict:
     """The ledger's line of the scoring a kept row holds."""
-    from tax3d import ledger
+    from tax3d.eval import ledger
 
     return {**ledger.scoring(kept["task"], num_train, kept["variant"], kept, kept.get("data_sha256"), 100, "c"),
             **changes}
@@ -177,7 +178,7 @@ def test_the_table_script_runs_every_row_of_each_task_with_the_command_its_kept_
     import subprocess
 
     from lab.results.commands import renamed
-    from tax3d.table import table_rows
+    from tax3d.variants import table_rows
 
     def dry_run(root):
         (root / "scripts").mkdir(parents=True, exist_ok=True)
@@ -299,7 +300,7 @@ def test_the_table_script_takes_the_named_tasks_in_their_order(tmp_path):
 def table_of(tmp_path, kept: dict[str, dict], lines=(), draw=None) -> tuple[str, dict[str, str]]:
     """The markdown of one unimodal table of 512 demos, and each row's last column by its name."""
     paper = tomllib.loads((ROOT / "docs" / "results" / "paper.toml").read_text())["hangproccloth-unimodal"]
-    rows = {512: {table.PAPER_KEYS[v]: {**r, "num_train": 512} for v, r in kept.items()}}
+    rows = {512: {paper_key(v): {**r, "num_train": 512} for v, r in kept.items()}}
     text = "\n".join(table.markdown("hangproccloth-unimodal", paper, rows, list(lines), {512: draw} if draw else {}))
     cells = {line.split(" | ")[0][2:]: line.split(" | ")[-1][:-2] for line in text.splitlines()
              if line.startswith("| ") and line.count(" | ") == 9}

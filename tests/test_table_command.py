@@ -6,10 +6,11 @@ import shutil
 
 import pytest
 
-from tax3d import ledger, train
+from tax3d import train
+from tax3d.eval import ledger
 from tax3d.checkpoint import sha256
 from tax3d.errors import UsageError
-from tax3d.table import Args, demos_digest, run
+from tax3d.cli.table import Args, demos_digest, run
 from tests.conftest import one_line_error
 
 
@@ -28,14 +29,14 @@ def no_simulator(monkeypatch):
     """Episodes scored without the simulator, for the tests of the table's bookkeeping (which rows train, score and
     count): each episode a success whose goal is the demo's own. The simulated episodes of `tax3d eval` have tests
     of their own (tests/test_evaluate.py), and the README's block runs this command whole."""
-    from tax3d import evaluate
+    from tax3d.eval import runner
 
     def episode(job):
-        result = {**evaluate._failed(job, ""), "success": True}
+        result = {**runner.failed(job, ""), "success": True}
         del result["error"]
         return result
 
-    monkeypatch.setattr(evaluate, "episode", episode)
+    monkeypatch.setattr(runner, "episode", episode)
 
 
 @pytest.mark.usefixtures("no_simulator")
@@ -105,7 +106,7 @@ def test_a_row_trained_again_after_a_fix_counts_its_trainings_and_scorings(data,
     is refused and the --retrain rerun scores the new weights (not a third training), and the summary counts two
     trainings and two scorings. A row
     scored in OUT whose copy in --keep was lost gets it back on a plain rerun."""
-    from tax3d import table
+    from tax3d.cli import table
 
     args = Args(task="hangproccloth-simple", variants="cd", out=tmp_path / "bench", steps=2, episodes=1,
                 num_train=1, num_val=1, workers=1, data=data, keep=tmp_path / "keep")
@@ -148,7 +149,7 @@ def test_the_earlier_name_of_the_command_says_its_name_today(capsys):
 
 
 def test_one_budget_and_the_multimodal_recipe(tmp_path, capsys):
-    from tax3d.table import preset_of
+    from tax3d.cli.table import preset_of
     from tax3d.cli import main
 
     assert main(["table", "--steps", "5", "--minutes", "3", "--out", str(tmp_path / "b")]) == 2
@@ -163,7 +164,7 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
     table's minutes."""
     import numpy as np
 
-    from tax3d import table
+    from tax3d.cli import table
     from tax3d.data import load_demo, write_demo
     from tax3d.sim import generate as gen
 
@@ -204,7 +205,7 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
 
 
 def test_data_only_makes_the_rows_demonstrations_and_nothing_else(tmp_path, monkeypatch):
-    from tax3d import evaluate
+    from tax3d.cli import eval as evaluate
 
     calls = []
     monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: calls.append(a) or {"failed": []})
@@ -218,7 +219,8 @@ def test_data_only_makes_the_rows_demonstrations_and_nothing_else(tmp_path, monk
 
 
 def test_a_row_records_the_table_command():
-    from tax3d import provenance, table
+    from tax3d import provenance
+    from tax3d.cli import table
 
     provenance.running(["table", "--task", "hangbag", "--keep", "docs/a b"])
     try:
@@ -228,7 +230,7 @@ def test_a_row_records_the_table_command():
 
 
 def test_the_floor_and_ceiling_rows_score_fixed_goals_without_training(tmp_path, monkeypatch):
-    from tax3d import evaluate
+    from tax3d.cli import eval as evaluate
 
     asked = []
 
@@ -245,7 +247,7 @@ def test_the_floor_and_ceiling_rows_score_fixed_goals_without_training(tmp_path,
     for split in ("train", "val", "unseen", "ood"):
         (tmp_path / "data" / split).mkdir(parents=True)
     monkeypatch.setattr("tax3d.sim.generate.generate", lambda a, progress=True: {"failed": []})
-    monkeypatch.setattr("tax3d.table._data_digests", lambda a, data: {})  # no demos in these folders
+    monkeypatch.setattr("tax3d.cli.table._data_digests", lambda a, data: {})  # no demos in these folders
     args = Args(task="hangproccloth-unimodal", variants="floor,ceiling", out=tmp_path / "b", episodes=1,
                 data=tmp_path / "data", keep=tmp_path / "keep", minutes=60)
     assert run(args) == 0
@@ -265,7 +267,7 @@ def test_an_unknown_row_is_one_line_naming_the_rows(tmp_path, capsys):
 
 
 def test_all_is_every_row_of_the_tasks_table(tmp_path):
-    from tax3d import table
+    from tax3d.cli import table
 
     rows = table._check(Args(task="hangproccloth-multimodal", variants="all", out=tmp_path / "m"))
     assert rows == ["cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp", "rd", "rp", "dp3", "floor", "ceiling"]
@@ -274,7 +276,7 @@ def test_all_is_every_row_of_the_tasks_table(tmp_path):
 
 
 def test_a_kept_row_is_not_trained_or_scored_again_when_out_is_gone(tmp_path, monkeypatch, capsys):
-    from tax3d import evaluate
+    from tax3d.cli import eval as evaluate
     from tax3d.errors import UsageError
 
     monkeypatch.setattr(evaluate, "evaluate", lambda a, progress=True, record=True: pytest.fail("a kept row is scored once"))

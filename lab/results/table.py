@@ -1,7 +1,7 @@
 """The paper's table of a task beside ours, row by row, from the rows that `tax3d table --keep` writes.
 
 Rows are kept as docs/results/table/TASK/DEMOS/VARIANT.json (kind "table-row"), every scoring of their test
-episodes in docs/results/table/ledger.jsonl (tax3d.ledger). The line above each table states its protocol from the
+episodes in docs/results/table/ledger.jsonl (tax3d.eval.ledger). The line above each table states its protocol from the
 rows' own fields (the preset, plan, weights and test episodes most of them share, how often the ledger says they were
 scored, the data draw the table names), and a row that departs from it says how in its last column: another preset
 or plan, last weights, another draw or no digests recorded, scored more than once (with each earlier score). Every
@@ -15,21 +15,18 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
-from tax3d import ledger as ledger_lines
+from tax3d.eval import ledger as ledger_lines
 from tax3d.errors import UsageError
 from tax3d.metrics import rate, split_rate, success_interval
+from tax3d.variants import FIXED_GOALS, ROWS, paper_key, row_name
 from lab.results import kept
 from lab.results.commands import shown
 
-PAPER_KEYS = {"cd": "CD", "cp": "CP", "cd_w": "CD-W", "cp_w": "CP-W", "cd_nac": "CD-NAC", "cp_nac": "CP-NAC",
-              "sd": "SD", "sp": "SP", "rd": "RD", "rp": "RP", "dp3": "DP3", "floor": "floor", "ceiling": "ceiling"}
-ORDER = ("CD", "CP", "CD-W", "CP-W", "CD-NAC", "CP-NAC", "SD", "SP", "RD", "RP", "DP3", "floor", "ceiling")
-FIXED = ("floor", "ceiling")  # no paper row: the policy with the mean goal of train, and with each demo's own goal
+ORDER = tuple(paper_key(row) for row in ROWS)
+FIXED = tuple(FIXED_GOALS)  # no paper row: the policy with the mean goal of train, and with each demo's own goal
 PAPER_METRICS = {"rmse": "rmse", "coverage_rmse": "coverage", "precision_rmse": "precision"}  # ours: the paper's
 SPLITS = ("train", "unseen", "ood")  # the columns of the paper's rows
 DRAW_FOLDERS = ("train", "val", "unseen", "ood")
-NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP", "floor": "mean goal of train (the floor)",
-         "ceiling": "each demo's own goal (the ceiling)"}
 
 
 def load_rows(folder: Path) -> dict[int, dict[str, dict]]:
@@ -37,7 +34,7 @@ def load_rows(folder: Path) -> dict[int, dict[str, dict]]:
     rows: dict[int, dict[str, dict]] = {}
     for path in sorted(folder.glob("*/*.json")) if folder.is_dir() else []:
         row = kept.read(path, ("table-row",))
-        rows.setdefault(int(path.parent.name), {})[PAPER_KEYS[row["variant"]]] = row
+        rows.setdefault(int(path.parent.name), {})[paper_key(row["variant"])] = row
     return rows
 
 
@@ -185,7 +182,7 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]], lines: li
             row, theirs = kept.get(key), paper_rows.get(key, {})
             rmse = theirs.get("rmse", (None, None, None))
             success = theirs.get("success", (None, None, None))
-            out.append(f"| {NAMES.get(key, key)} | {_success(row, 'unseen')} | {cell(success[1], '.2f')} | "
+            out.append(f"| {row_name(key)} | {_success(row, 'unseen')} | {cell(success[1], '.2f')} | "
                        f"{_success(row, 'ood')} | {cell(success[2], '.2f')} | {_rmse(row, 'unseen')} | "
                        f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} | "
                        f"{'' if row is None else protocol.departures(row)} |")
@@ -211,7 +208,7 @@ def _goal_table(keys: list[str], kept: dict[str, dict], paper_rows: dict) -> lis
                 ours = None if row is None else row["splits"][split].get(metric)
                 paper = theirs.get(PAPER_METRICS[metric], (None, None, None))[column]
                 cells += [cell(ours, ".3f") if row is not None else "not run yet", cell(paper, ".3f")]
-        lines.append(f"| {NAMES.get(key, key)} | " + " | ".join(cells) + " |")
+        lines.append(f"| {row_name(key)} | " + " | ".join(cells) + " |")
     return lines + [""]
 
 
@@ -233,22 +230,22 @@ def _check(kept: dict, paper_rows: dict, claim: dict, worse: str, than: str | No
     key, split = worse.split(":")
     row = kept.get(key)
     if row is None or (than is not None and kept.get(than.split(":")[0]) is None):
-        return MISSING, f"{NAMES.get(key, key)} {split}: {MISSING}"
+        return MISSING, f"{row_name(key)} {split}: {MISSING}"
     if than is None and metric != "success":  # `reaches` an error: ours at or below the paper's
         ours = row["splits"][split].get(metric)
         theirs = paper_rows[key][PAPER_METRICS[metric]][SPLITS.index(split)]
         verdict = HOLDS if ours is not None and ours <= theirs + claim.get("margin", 0.0) + 1e-9 else FAILS
-        return verdict, f"{NAMES.get(key, key)} {split} {cell(ours, '.3f')} (paper {theirs:.3f})"
+        return verdict, f"{row_name(key)} {split} {cell(ours, '.3f')} (paper {theirs:.3f})"
     if than is None:  # `reaches`: our success against the paper's
         ours, theirs = row["splits"][split], _paper_success(paper_rows, key, split)
         verdict = HOLDS if ours["success_rate"] >= theirs - claim.get("margin", 0.0) - 1e-9 else FAILS
-        return verdict, f"{NAMES.get(key, key)} {split} {split_rate(ours)} (paper {theirs:.2f})"
+        return verdict, f"{row_name(key)} {split} {split_rate(ours)} (paper {theirs:.2f})"
     other_key, other_split = than.split(":")
     other = kept[other_key]
     a, b = _value(row, split, metric), _value(other, other_split, metric)
     shown = ((split_rate(row["splits"][split]), split_rate(other["splits"][other_split])) if metric == "success"
              else (f"{a:.2f}", f"{b:.2f}"))
-    text = f"{NAMES.get(key, key)} {split} {shown[0]} vs {NAMES.get(other_key, other_key)} {other_split} {shown[1]}"
+    text = f"{row_name(key)} {split} {shown[0]} vs {row_name(other_key)} {other_split} {shown[1]}"
     if metric != "success":  # an RMSE: worse when it is `factor` times the other's
         return (HOLDS if a > claim.get("factor", 1.0) * b else FAILS), text
     if a >= b:
@@ -359,7 +356,7 @@ def commands(rows: dict[int, dict[str, dict]], ledger: list[dict] = ()) -> list[
             episodes = ("" if digests is None else
                         f" (unseen `{digests['unseen'][:12]}`, ood `{digests['ood'][:12]}`)")
             scored = len(ledger_lines.of_row(list(ledger), row["task"], demos, row["variant"]))
-            lines.append(f"- {NAMES.get(key, key)}, {demos} demos: {shown(row['command'])} on {row['machine']}, "
+            lines.append(f"- {row_name(key)}, {demos} demos: {shown(row['command'])} on {row['machine']}, "
                          f"{row['date']}; {weights}; test episodes{episodes} scored {times(scored)} (the ledger)"
                          + (f"; trained {row['trainings']} times, the earlier weights set aside by "
                                       "`--retrain` after a fix" if row.get("trainings", 1) > 1 else ""))

@@ -4,7 +4,7 @@ the anchor cloud after farthest point sampling; prints one JSON object.
     python -m lab.studies.goal_spread --data data/hangbag [--points 256 512]
 
 - mean goal: the mean over DATA/train of the goal in the anchor frame (translation to the anchor's mean, the CD/CP
-  frame), placed at each demo's anchor (`tax3d.metrics.MeanGoalBaseline`);
+  frame), placed at each demo's anchor (`tax3d.policies.fixed.MeanGoalBaseline`);
 - rotated mean goal: the same, in a frame that also turns with the anchor's known z-rotation (an oracle for the
   rotation, which no model is given), so the rest is the deformable's own variation;
 - anchor points off the pole: points farther than 0.35 from the pole's axis and above z = trans_z + 8 (the hook
@@ -24,7 +24,8 @@ import torch
 from tax3d import kept, provenance
 from tax3d.data.format import list_demos, load_demo
 from tax3d.geometry import farthest_point_sample
-from tax3d.metrics import MeanGoalBaseline, rmse
+from tax3d.metrics import rmse
+    from tax3d.policies.fixed import MeanGoalBaseline
 from lab.studies import command_line
 
 

@@ -30,7 +30,8 @@ OFFICIAL = ROOT.parent / "shared" / "data" / "tax3d-official" / "hangproccloth-s
 def measure(checkpoint: Path, samples: int, seed: int) -> dict:
     from tax3d.data.dataset import demo_files
     from tax3d.data.format import load_demo
-    from tax3d.metrics import MeanGoalBaseline, rmse
+    from tax3d.metrics import rmse
+    from tax3d.policies.fixed import MeanGoalBaseline
     from tax3d.model.tax3d import Tax3D
 
     model = Tax3D.from_pretrained(checkpoint)

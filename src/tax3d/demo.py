@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import Annotated
 
 from tax3d.errors import UsageError
-from tax3d.evaluate import Args as EvalArgs
-from tax3d.evaluate import run as run_eval
+from tax3d.cli.eval import Args as EvalArgs
+from tax3d.cli.eval import run as run_eval
 from tax3d.options import OutputFolder, Positive
 
 SHIPPED = Path(__file__).resolve().parents[2] / "checkpoints" / "tax3d-cd-simple"

@@ -1,4 +1,4 @@
-"""Goal-prediction metrics (paper App. C; docs/reference.md, Evaluation) and the trivial mean-goal predictor.
+"""Goal-prediction metrics (paper App. C; docs/reference.md, Evaluation).
 
 Every function takes numpy arrays or torch tensors of world-frame points and returns the same kind.
 """
@@ -77,42 +77,6 @@ def grip_error(samples, goal, grip) -> float:
     sends the grippers."""
     grip = list(grip)
     return float(np.linalg.norm(samples[..., grip, :] - goal[grip], axis=-1).mean())
-
-
-class MeanGoalBaseline:
-    """Predicts the training demos' mean goal in the anchor frame, placed at the new anchor's mean.
-
-    One fixed deformable (HangProcCloth-simple, HangBag): its vertices correspond from demo to demo, so the mean is
-    taken point by point. Random cloths (unimodal, multimodal): each point of the new cloth takes, in every training
-    demo, the goal of the nearest point of that demo's initial cloud, and those goals are averaged; for one fixed
-    cloth this is the same point-by-point mean."""
-
-    def __init__(self, goals_in_anchor_frame: np.ndarray, starts: list | None = None, goals: list | None = None):
-        self.goal = np.asarray(goals_in_anchor_frame, dtype=np.float64)  # (N, 3); empty for random cloths
-        self.starts, self.goals = starts, goals  # per training demo: initial action cloud, goal in anchor frame
-
-    @classmethod
-    def fit(cls, demos) -> "MeanGoalBaseline":
-        """demos: dicts with action_pc, anchor_pc and flow."""
-        demos = list(demos)
-        if not demos:
-            raise ValueError("the mean-goal baseline needs at least one training demo")
-        goals = [d["action_pc"] + d["flow"] - d["anchor_pc"].mean(0) for d in demos]
-        first = demos[0]["action_pc"]
-        if all(d["action_pc"].shape == first.shape and np.abs(d["action_pc"] - first).max() < 1e-3 for d in demos):
-            return cls(np.mean(goals, axis=0))
-        return cls(np.zeros((0, 3)), [np.asarray(d["action_pc"], dtype=np.float64) for d in demos], goals)
-
-    def predict(self, action_points, anchor_points) -> np.ndarray:
-        center = np.asarray(anchor_points, dtype=np.float64).mean(0)
-        if self.starts is None:
-            if len(action_points) != len(self.goal):
-                raise ValueError(f"{len(action_points)} action points; this baseline was fitted on {len(self.goal)}")
-            return self.goal + center
-        action = np.asarray(action_points, dtype=np.float64)
-        nearest = [goal[((action[:, None] - start[None]) ** 2).sum(-1).argmin(1)]
-                   for start, goal in zip(self.starts, self.goals)]
-        return np.mean(nearest, axis=0) + center
 
 
 def medoid_rmse(goals: list[np.ndarray], errors: np.ndarray) -> float:

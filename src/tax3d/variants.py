@@ -45,3 +45,36 @@ def variant_spec(name: str | VariantSpec) -> VariantSpec:
     if key not in _SPECS:
         raise UsageError(f"unknown variant '{name}'; expected one of {', '.join(VARIANTS)}")
     return _SPECS[key]
+
+
+# The rows of the paper's table (appendix D): the variants, the DP3 baseline, and two fixed goals that bound the
+# policy, each the `tax3d eval --goal` it is scored with (no network, nothing trained).
+BASELINE = "dp3"
+FIXED_GOALS = {"floor": "mean", "ceiling": "demo"}
+REGRESSION = ("rd", "rp")  # the paper runs them on the multimodal task alone
+ROWS = (*VARIANTS, BASELINE, *FIXED_GOALS)
+ROW_NAMES = {"cd": "TAX3D-CD", "cp": "TAX3D-CP", "floor": "mean goal of train (the floor)",
+             "ceiling": "each demo's own goal (the ceiling)"}
+# an evaluation's summary names what it scored by its variant, or by its --goal ("demo-goal", "mean-goal")
+SCORED_NAMES = {BASELINE: "DP3", "demo-goal": "Each demo's own goal", "mean-goal": "The training set's mean goal"}
+
+
+def table_rows(task: str) -> tuple[str, ...]:
+    """The rows of the task's table in appendix D (RD and RP on multimodal only), then the floor and the ceiling."""
+    return tuple(r for r in ROWS if r not in REGRESSION or task == "hangproccloth-multimodal")
+
+
+def paper_key(row: str) -> str:
+    """The row as the paper's table names it: "CD-W" for cd_w, "DP3"; the fixed goals as they are."""
+    return row if row in FIXED_GOALS else row.upper().replace("_", "-")
+
+
+def row_name(key: str) -> str:
+    """A row of the table as a page names it, from its paper key: "TAX3D-CD", "CD-W", "mean goal of train (...)"."""
+    row = key.lower().replace("-", "_")
+    return ROW_NAMES.get(row, key)
+
+
+def display_name(variant: str) -> str:
+    """What an evaluation's summary scored, by its variant ("cd", "dp3", "demo-goal"): "TAX3D-CD", "DP3", ..."""
+    return SCORED_NAMES.get(variant, f"TAX3D-{variant.upper()}")

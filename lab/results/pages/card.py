@@ -14,13 +14,14 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from tax3d import ledger
+from tax3d.eval import ledger
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
+from tax3d.variants import FIXED_GOALS, display_name, paper_key, row_name
 from lab.results import kept
 from lab.results.commands import renamed, shown
 from lab.results.pages.page import SPLITS, Page, cell
-from lab.results.table import NAMES, PAPER_KEYS, times
+from lab.results.table import times
 
 
 CARDS = Path("pages") / "model-cards.toml"
@@ -86,9 +87,9 @@ def card(checkpoint: str, config: dict, records: list[dict], summary: dict, data
     paper = paper_tables.get(task, {}).get("rows", {}).get(variant.upper())
     source = "the authors' demonstrations" if official else "this project's own demonstrations"
     lines = [
-        f"# TAX3D-{variant.upper()} for {task}",
+        f"# {display_name(variant)} for {task}",
         "",
-        f"A TAX3D-{variant.upper()} goal predictor (a diffusion transformer over per-point cross-displacements) for "
+        f"A {display_name(variant)} goal predictor (a diffusion transformer over per-point cross-displacements) for "
         f"`{task}`, trained on {source} with the `cpu` recipe of [docs/training.md](../../docs/training.md).",
         *usage(checkpoint),
         f"`tax3d eval` on {summary['task']}, {summary['date']}, {summary['machine']}; the paper's figures from "
@@ -156,8 +157,9 @@ def network_line(config: dict) -> str:
 def bounds_line(row: dict, bounds: dict[str, dict]) -> list[str]:
     """One sentence on what the policy hangs on the same test episodes with the floor's and the ceiling's goals."""
     said = []
-    for key, what in (("floor", "the mean goal of train (the floor)"), ("ceiling", "each demo's own goal (the ceiling)")):
+    for key in FIXED_GOALS:
         if key in bounds:
+            what = ("the " if key == "floor" else "") + row_name(key)  # "each demo's own goal" takes none
             rates = " / ".join(split_rate(bounds[key]["splits"][split]) for split in row["splits"])
             said.append(f"{what} hangs {rates}")
     return [f"On the same episodes ({' / '.join(row['splits'])}), {' and '.join(said)}.", ""] if said else []
@@ -168,8 +170,8 @@ def row_card(checkpoint: str, config: dict, row: dict, paper_task: dict, bounds:
     """The card of weights shipped from a table row: its test episodes scored once, chosen on `val`, one command;
     `bounds` the floor and ceiling rows of the same table, where they have been scored; `scorings` the ledger's
     count of the row's scorings (None: the row's own)."""
-    task, key = row["task"], PAPER_KEYS[row["variant"]]
-    name, paper = NAMES.get(key, key), paper_task.get("rows", {}).get(key)
+    task, key = row["task"], paper_key(row["variant"])
+    name, paper = row_name(key), paper_task.get("rows", {}).get(key)
     paper_demos = paper_task.get("demos", [None])[0]
     test, vals = row["test"], row["validations"]
     best = min(vals, key=lambda v: v["val_rmse"])
@@ -239,7 +241,7 @@ class CardsPage(Page):
                 if config.get("weights_sha256") != row["weights_sha256"]:
                     raise UsageError(f"{c['checkpoint']}/config.json: weights sha256 {config.get('weights_sha256')}; "
                                      f"expected {row['weights_sha256']}, the weights of the row {c['row']}")
-                bounds = {key: kept.read(path, ("table-row",)) for key in ("floor", "ceiling")
+                bounds = {key: kept.read(path, ("table-row",)) for key in FIXED_GOALS
                           if (path := (self.root / c["row"]).parent / f"{key}.json").is_file()}
                 lines = ledger.of_row(ledger.read(self.root / "table" / "ledger.jsonl"), row["task"], row["num_train"],
                                       row["variant"])

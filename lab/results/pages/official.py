@@ -28,7 +28,7 @@ class OfficialPage(MeasurementPage):
                  f"| TAX3D-CD, this checkpoint, 10-step DDIM | {ddim['rmse']:.3f} | "
                  f"{ddim['rmse_min_of_samples']:.3f} |",
                  f"| TAX3D-CD, the paper (`unseen`) | {paper:.3f} | - |",
-                 f"| mean goal of `train` in the anchor frame (`tax3d.metrics.MeanGoalBaseline`) | "
+                 f"| mean goal of `train` in the anchor frame (`tax3d.policies.fixed.MeanGoalBaseline`) | "
                  f"{val['mean_goal_baseline_rmse']:.3f} | - |", "",
                  f"Measured by {provenance(val)}, checkpoint `{val['checkpoint']}` "
                  "([official_val.json](official_val.json)).", "", *self.notes("rmse")]

@@ -17,16 +17,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tax3d import ledger
+from tax3d.eval import ledger
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
+from tax3d.variants import paper_key, row_name
 from lab.results import table
 from lab.results.commands import EARLIER, shown
 from lab.results.pages import plots
 from lab.results.pages.card import shipped_rows
 from lab.results.pages.page import SPLITS, Page, cell, fold, shared, slots
 
-VARIANT_NAMES = {"CD": "TAX3D-CD", "CP": "TAX3D-CP"}
 
 
 class TaskPage(Page):
@@ -67,7 +67,7 @@ class TaskPage(Page):
             key = ref.split(":", 1)[1]
             row = self.paper["rows"][key]
             demos = " / ".join(map(str, self.paper.get("demos", ())))
-            return (f"{VARIANT_NAMES.get(key, key)}, the paper", list(row.get("rmse", (None,) * 3)),
+            return (f"{row_name(key)}, the paper", list(row.get("rmse", (None,) * 3)),
                     list(row["success"]), demos)
         row = next(r for r in self.rows if r["id"] == ref)
         d = self.data[ref]
@@ -118,7 +118,7 @@ class TaskPage(Page):
             paper = self.paper["rows"].get(key, {}) if key else {}
             if "coverage" in paper and key not in seen:
                 seen.add(key)
-                lines.append(f"| {VARIANT_NAMES.get(key, key)}, the paper | "
+                lines.append(f"| {row_name(key)}, the paper | "
                              + " | ".join(f"{v:.3f}" for v in (*paper["coverage"], *paper["precision"])) + " |")
         return lines
 
@@ -202,9 +202,9 @@ class TaskPage(Page):
         if not rows:
             return []
         lines = self.ledger()
-        shipped = [f"the {table.NAMES.get(key, key)} row at {demos} demos as [{checkpoint}](../../{checkpoint}/README.md)"
+        shipped = [f"the {row_name(key)} row at {demos} demos as [{checkpoint}](../../{checkpoint}/README.md)"
                    for path, checkpoint in shipped_rows(self.root, self.spec["task"])
-                   for demos, key in [(int(Path(path).parent.name), table.PAPER_KEYS[Path(path).stem])]]
+                   for demos, key in [(int(Path(path).parent.name), paper_key(Path(path).stem))]]
         ship = [f"Shipped: {', '.join(shipped)}, each with its model card.", ""] if shipped else []
         return [table.verdict(self.paper, rows), "", "## The paper's table under one protocol", "",
                 *table.markdown(self.spec["task"], self.paper, rows, lines, self.draws(rows)), *ship,

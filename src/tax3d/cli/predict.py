@@ -28,7 +28,8 @@ from tax3d import kept, provenance
 from tax3d.atomic import atomic_write, write_text
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
-from tax3d.metrics import MeanGoalBaseline, medoid_rmse, rmse
+from tax3d.metrics import medoid_rmse, rmse
+from tax3d.policies.fixed import MeanGoalBaseline
 from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
 from tax3d import options

@@ -3,15 +3,28 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class Sampling:
+    """How a goal policy samples its goals (`tax3d eval`'s options of the same names)."""
+
+    samples: int = 1  # goal samples a prediction; the policy follows the first
+    steps: int | None = None  # denoising steps (None: the checkpoint's)
+    sampler: str | None = None  # ddpm or ddim (None: the checkpoint's)
+    max_points: int | None = None  # the network runs on at most this many action points (None: the checkpoint's)
+    seed: int = 0  # of the first prediction; each later one adds one
+    replan_every: int = 0  # closed loop: predict again every K environment steps (0: open loop)
 
 
 class GoalPolicy:
     """Predict the goal of every action point once (the network on at most the checkpoint's predict_points of them);
     drive the grippers to the predicted grip vertices.
 
-    With replan_every = K > 0 it predicts again every K environment steps from the current cloth (closed loop,
+    With sampling.replan_every = K > 0 it predicts again every K environment steps from the current cloth (closed loop,
     the paper's stated limitation; reported separately). `offset` is added to the predicted positions (HangBag:
     `tax3d.sim.bag.POLICY_OFFSET`). With several samples it follows the first, the paper's policy. Called as
     make_policy(env, state) by run_episode.
@@ -21,13 +34,11 @@ class GoalPolicy:
     vertices, which the simulator knows.
     """
 
-    def __init__(self, predictor, num_samples: int = 1, steps: int | None = None, seed: int = 0,
-                 replan_every: int = 0, trajectory: bool = False, offset=(0.0, 0.0, 0.0),
-                 sampler: str | None = None, max_points: int | None = None, observe=None):
-        self.predictor, self.num_samples, self.steps, self.seed = predictor, num_samples, steps, seed
-        self.sampler, self.max_points, self.observe = sampler, max_points, observe
+    def __init__(self, predictor, sampling: Sampling = Sampling(), trajectory: bool = False, offset=(0.0, 0.0, 0.0),
+                 observe=None):
+        self.predictor, self.sampling, self.observe = predictor, sampling, observe
         self.offset = np.asarray(offset, dtype=np.float64)
-        self.replan_every, self.trajectory = replan_every, trajectory
+        self.trajectory = trajectory
         self.predict_seconds, self.predictions = 0.0, 0
         self.first_prediction: np.ndarray | None = None  # (S, N, 3) world-frame goal samples
         self.first_cloud: np.ndarray | None = None  # (N, 3) the action cloud they were predicted from
@@ -54,15 +65,14 @@ class GoalPolicy:
     def _predict(self, cloth: np.ndarray) -> None:
         cloth = self._seen(cloth)
         start = time.perf_counter()
-        seed = self.seed + self.predictions
+        s = self.sampling
+        options = dict(num_samples=s.samples, steps=s.steps, sampler=s.sampler, seed=s.seed + self.predictions,
+                       max_points=s.max_points)
         if self.trajectory and self.predictions == 0:
-            goals, path = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps,
-                                                 sampler=self.sampler, seed=seed, return_trajectory=True,
-                                                 max_points=self.max_points)
+            goals, path = self.predictor.predict(cloth, self.anchor, return_trajectory=True, **options)
             self.denoising = path[:, 0]
         else:
-            goals = self.predictor.predict(cloth, self.anchor, num_samples=self.num_samples, steps=self.steps,
-                                           sampler=self.sampler, seed=seed, max_points=self.max_points)
+            goals = self.predictor.predict(cloth, self.anchor, **options)
         self.predict_seconds += time.perf_counter() - start
         if self.predictions == 0:
             self.first_prediction, self.first_cloud = goals, cloth
@@ -70,7 +80,8 @@ class GoalPolicy:
         self.current = goals[0][self.grip] + self.offset
 
     def targets(self, cloth: np.ndarray) -> np.ndarray:
-        if self.replan_every and self.step and self.step % self.replan_every == 0:
+        every = self.sampling.replan_every
+        if every and self.step and self.step % every == 0:
             self._predict(cloth)
         self.step += 1
         return self.current

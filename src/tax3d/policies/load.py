@@ -1,11 +1,20 @@
-"""A checkpoint's model and the policy that executes it: the one place that tells TAX3D from the DP3 baseline."""
+"""A checkpoint's model and the policy that executes a goal: the one place that tells TAX3D from the DP3 baseline."""
 
 from __future__ import annotations
 
-from tax3d.baselines.dp3 import DP3, DP3Policy, is_dp3_checkpoint
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from tax3d.baselines.dp3 import DP3, is_dp3_checkpoint
 from tax3d.devices import pick_device
 from tax3d.model.tax3d import Tax3D
-from tax3d.policies.goal import GoalPolicy
+from tax3d.policies.dp3 import DP3Policy
+from tax3d.policies.fixed import FixedGoal, MeanGoalBaseline
+from tax3d.policies.goal import GoalPolicy, Sampling
+
+_LOADED: dict = {}  # (checkpoint, device): the model, loaded once a process
 
 
 def load_model(checkpoint, device: str = "cpu") -> Tax3D | DP3:
@@ -21,12 +30,22 @@ def check_sampling(model, steps: int | None, sampler: str | None, prefix: str = 
         model.sampling(steps, sampler, prefix)
 
 
-def policy_for(predictor, samples: int = 1, steps: int | None = None, seed: int = 0, replan_every: int = 0,
-               trajectory: bool = False, offset=(0.0, 0.0, 0.0), sampler: str | None = None,
-               max_points: int | None = None, observe=None):
-    """The policy that executes `predictor`: DP3 its own action windows (no goal), anything that predicts goals
-    (TAX3D, a FixedGoal) the goal policy of appendix A.3 with these settings."""
-    if isinstance(predictor, DP3):
-        return DP3Policy(predictor, seed)
-    return GoalPolicy(predictor, samples, steps, seed, replan_every, trajectory=trajectory, offset=offset,
-                      sampler=sampler, max_points=max_points, observe=observe)
+def _model(checkpoint, device: str):
+    if (str(checkpoint), device) not in _LOADED:
+        torch.set_num_threads(1)  # one thread a worker process, each with its own copy of the model
+        _LOADED[str(checkpoint), device] = load_model(checkpoint, device)
+    return _LOADED[str(checkpoint), device]
+
+
+def load_policy(goal, sampling: Sampling = Sampling(), device: str = "cpu", trajectory: bool = False,
+                offset=(0.0, 0.0, 0.0), observe=None):
+    """The policy that executes `goal`: a checkpoint folder (loaded once a process, on `device`), a model, or a goal
+    that no network predicts (a demo's own goal array, a MeanGoalBaseline). DP3 executes its own action windows (no
+    goal, sampling.seed alone); anything that predicts goals, the goal policy of appendix A.3 with these settings."""
+    if isinstance(goal, (str, Path)):
+        goal = _model(goal, device)
+    elif isinstance(goal, (np.ndarray, MeanGoalBaseline)):
+        goal = FixedGoal(goal)
+    if isinstance(goal, DP3):
+        return DP3Policy(goal, sampling.seed)
+    return GoalPolicy(goal, sampling, trajectory=trajectory, offset=offset, observe=observe)

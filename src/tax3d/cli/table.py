@@ -5,7 +5,7 @@ validate best on the `val` split, and is then scored once on the test episodes: 
 TEST_FIRST_INDEX on, which no choice has touched. A finished row's summary is written at once (to --keep too),
 and a rerun skips what is there, in OUT or in --keep: a row is never trained or scored again unless --rescore (score
 again) or --retrain (train again from the start, then score) asks, and its summary counts both. Every scoring is
-first appended to the ledger (tax3d.ledger), which no deletion or rerun of a row shortens.
+first appended to the ledger (tax3d.eval.ledger), which no deletion or rerun of a row shortens.
 """
 
 from __future__ import annotations
@@ -17,26 +17,28 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
-from tax3d import kept, ledger, provenance
+from tax3d import config as cfg
+from tax3d import kept, provenance, train
 from tax3d.atomic import write_json, write_text
-from tax3d.config import PresetName
-from tax3d.errors import UsageError
+from tax3d.baselines.dp3 import config as dp3_cfg
+from tax3d.baselines.dp3 import train as dp3_train
+from tax3d.checkpoint import WEIGHTS_NAME, read_log, sha256
+from tax3d.cli import eval as evaluation
+from tax3d.config import PresetName, cpu_preset_of
+from tax3d.data.format import is_valid_demo, list_demos, strip_trajectories
+from tax3d.devices import pick_device
 from tax3d.digest import demos_digest
+from tax3d.errors import UsageError
+from tax3d.eval import ledger
+from tax3d.eval.summary import format_table
 from tax3d.options import NonNegative, OutputFolder, Positive
+from tax3d.sim import generate as gen
+from tax3d.sim.tasks import get_task
+from tax3d.variants import FIXED_GOALS, ROWS, table_rows
 
-FIXED_GOALS = {"floor": "mean", "ceiling": "demo"}  # row: `tax3d eval --goal` (no network, nothing trained)
-REGRESSION = ("rd", "rp")  # the paper runs them on the multimodal task alone
 # Each attempt draws the cloth and pose of its index afresh (tax3d.sim.generate); the simulation is not bit-exact
 # across machines, and three multimodal cloths of 256 failed five attempts on one machine that passed on another
 DATA_ATTEMPTS = 10
-
-
-def table_rows(task: str) -> tuple[str, ...]:
-    """`--variants all`: the rows of the task's table in appendix D, then the floor and the ceiling."""
-    rows = ("cd", "cp", "cd_w", "cp_w", "cd_nac", "cp_nac", "sd", "sp",
-            *(REGRESSION if task == "hangproccloth-multimodal" else ()), "dp3")
-    return (*rows, *FIXED_GOALS)
-
 
 
 @dataclass
@@ -91,8 +93,6 @@ class Args:
 
 
 def preset_of(args: Args) -> str:
-    from tax3d.config import cpu_preset_of
-
     return args.preset or cpu_preset_of(args.task)
 
 
@@ -100,11 +100,6 @@ def _generate_data(args: Args) -> Path:
     """train (NUM_TRAIN), val (NUM_VAL), and the test episodes of unseen and ood; only what is missing is made. With
     DP3 among the rows, train-traj comes first and train takes its demos without their trajectories: one simulation
     of each training demo, and DP3 and TAX3D train on the very same demonstrations."""
-    from tax3d.data.format import is_valid_demo, strip_trajectories
-    from tax3d.sim.generate import Args as GenerateArgs
-    from tax3d.sim.generate import generate
-    from tax3d.sim.tasks import get_task
-
     task = get_task(args.task)
     root = args.out / "data" if args.data is None else args.data
     num_train = args.num_train or task.sizes["train"]
@@ -115,7 +110,7 @@ def _generate_data(args: Args) -> Path:
     for split, folder, first, num in plan:
         print(f"[table] demonstrations: {args.task} {split} demo_{first}-{first + num - 1} -> {root / folder}",
               flush=True)
-        stats = generate(GenerateArgs(task=args.task, split=split, first_index=first, num=num, out=root / folder,
+        stats = gen.generate(gen.Args(task=args.task, split=split, first_index=first, num=num, out=root / folder,
                                       workers=args.workers, trajectories=folder == "train-traj",
                                       max_attempts=DATA_ATTEMPTS), progress=False)
         if stats["failed"]:
@@ -131,8 +126,6 @@ def _generate_data(args: Args) -> Path:
 
 def _train_files(folder: Path, num: int) -> tuple[str, ...]:
     """The train folder itself when it holds exactly NUM demos, else its first NUM files."""
-    from tax3d.data.format import list_demos
-
     files = list_demos(folder)
     if len(files) < num:
         raise UsageError(f"--num-train {num}: {folder} holds {len(files)} demos; expected at least {num}")
@@ -140,9 +133,6 @@ def _train_files(folder: Path, num: int) -> tuple[str, ...]:
 
 
 def _train(args: Args, variant: str, data: Path) -> Path:
-    from tax3d import train
-    from tax3d.sim.tasks import get_task
-
     out = args.out / variant / "train"
     num = args.num_train or get_task(args.task).sizes["train"]
     if variant == "dp3":
@@ -156,9 +146,6 @@ def _train(args: Args, variant: str, data: Path) -> Path:
 
 def train_args(args: Args, variant: str, out: Path, files: tuple[str, ...], val: Path):
     """The `tax3d train` a row runs: the preset, the variant, the demonstrations and the budget, nothing else."""
-    from tax3d import config as cfg
-    from tax3d import train
-
     return train.Args(
         out=str(out), preset=preset_of(args),
         model=cfg.ModelOverrides(**_only(cfg.ModelOverrides, variant=variant)),
@@ -170,9 +157,6 @@ def train_args(args: Args, variant: str, out: Path, files: tuple[str, ...], val:
 
 def _train_dp3(args: Args, out: Path, files: tuple[str, ...]) -> Path:
     """DP3 on the same demonstrations (with trajectories) for the same minutes; it validates nothing: last/."""
-    from tax3d.baselines.dp3 import config as dp3_cfg
-    from tax3d.baselines.dp3 import train as dp3_train
-
     if not (out / "DONE").exists():
         print(f"[table] training dp3 -> {out}", flush=True)
         dp3_train.run(dp3_train.Args(
@@ -192,9 +176,6 @@ def _only(cls, **values) -> dict:
 
 def _data_digests(args: Args, data: Path) -> dict:
     """The digest of each split a row used: its training demos, the val demos, the test episodes."""
-    from tax3d.data.format import list_demos
-    from tax3d.sim.tasks import get_task
-
     num = args.num_train or get_task(args.task).sizes["train"]
     test = [f"demo_{i}.npz" for i in range(args.first_index, args.first_index + args.episodes)]
     return {"train": demos_digest(list_demos(data / "train")[:num]),
@@ -223,19 +204,15 @@ def _scored(args: Args, variant: str) -> dict | None:
 
 def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dict:
     """The row's summary: scored on the test episodes now, or read back when it has been (unless --rescore)."""
-    from tax3d.checkpoint import read_log
-    from tax3d.evaluate import Args as EvalArgs
-    from tax3d.evaluate import evaluate
-
     row = _scored(args, variant)
     if row is not None and not (args.rescore or args.retrain):
         return row
     print(f"[table] scoring {variant} ({checkpoint or 'a fixed goal'}) on the test episodes", flush=True)
-    summary = evaluate(EvalArgs(checkpoint=checkpoint, goal=FIXED_GOALS.get(variant, "model"), task=args.task,
-                                splits="unseen,ood", data=data,
-                                first_index=args.first_index, episodes=args.episodes, samples=args.samples,
-                                workers=args.workers, device=args.device, out=args.out / variant / "eval"),
-                       progress=False, record=False)["summary"]
+    scoring = evaluation.Args(checkpoint=checkpoint, goal=FIXED_GOALS.get(variant, "model"), task=args.task,
+                              splits="unseen,ood", data=data, first_index=args.first_index, episodes=args.episodes,
+                              samples=args.samples, workers=args.workers, device=args.device,
+                              out=args.out / variant / "eval")
+    summary = evaluation.evaluate(scoring, progress=False, record=False)["summary"]
     digests = _data_digests(args, data)
     ledger.append(ledger.default_path(), ledger.scoring(args.task, args.num_train, variant, summary, digests,
                                                         args.first_index, command()))
@@ -264,8 +241,6 @@ def _score(args: Args, variant: str, checkpoint: Path | None, data: Path) -> dic
 
 def _trained_weights_sha(row: dict, run: Path) -> str | None:
     """The sha256 of the weights file in `run` that the row names (best/ or last/), None where there is none."""
-    from tax3d.checkpoint import WEIGHTS_NAME, sha256
-
     weights = run / row["weights"] / WEIGHTS_NAME
     return sha256(weights) if weights.is_file() else None
 
@@ -294,7 +269,7 @@ def _set_aside(args: Args, variant: str) -> None:
 
 def command() -> str:
     """The command line of this table run, as a page shows it."""
-    return provenance.command("tax3d.table")
+    return provenance.command("tax3d.cli.table")
 
 
 def _rows(args: Args) -> list[str]:
@@ -304,19 +279,14 @@ def _rows(args: Args) -> list[str]:
 
 
 def _check(args: Args) -> list[str]:
-    from tax3d.devices import pick_device
-    from tax3d.variants import VARIANTS
-    from tax3d.sim.tasks import get_task
-
     get_task(args.task)
     pick_device(args.device)  # a bad --device fails before any demonstration is generated
     if args.steps is not None and args.minutes > 0:
         raise UsageError(f"--steps {args.steps}: not with --minutes {args.minutes:g}; expected one budget")
     variants = _rows(args)
-    rows = (*VARIANTS, "dp3", *FIXED_GOALS)
-    unknown = [v for v in variants if v not in rows]
+    unknown = [v for v in variants if v not in ROWS]
     if unknown:
-        raise UsageError(f"--variants: unknown row {unknown[0]!r}; expected some of {', '.join(rows)}, or all")
+        raise UsageError(f"--variants: unknown row {unknown[0]!r}; expected some of {', '.join(ROWS)}, or all")
     if not variants:
         raise UsageError("--variants: expected at least one variant")
     if args.keep is not None:
@@ -336,8 +306,6 @@ def _check(args: Args) -> list[str]:
 
 
 def run(args: Args) -> int:
-    from tax3d.evaluate import format_table
-
     variants = _check(args)
     data = _generate_data(args)
     if args.data_only:

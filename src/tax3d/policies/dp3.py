@@ -1,4 +1,4 @@
-"""DP3 in a rollout: `run_episode(env, ..., make_policy=DP3Policy.from_pretrained(dir))`.
+"""The DP3 baseline in a rollout: `run_episode(env, ..., make_policy=DP3Policy.from_pretrained(dir))`.
 
 Called as policy(env, state) after reset, then policy.targets(cloth) at every environment step. It keeps the last
 n_obs_steps observations (the first one repeated at t = 0), predicts an action window every n_action_steps steps

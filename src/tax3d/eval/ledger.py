@@ -23,7 +23,7 @@ from tax3d.digest import demos_digest
 from tax3d.errors import UsageError
 
 ENV = "TAX3D_LEDGER"
-REPOSITORY_LEDGER = Path(__file__).resolve().parents[2] / "docs" / "results" / "table" / "ledger.jsonl"
+REPOSITORY_LEDGER = Path(__file__).resolve().parents[3] / "docs" / "results" / "table" / "ledger.jsonl"
 SPLITS = ("unseen", "ood")
 
 
