@@ -313,8 +313,7 @@ def test_an_interrupted_evaluation_resumes_with_the_missing_episodes(generated, 
     uninterrupted run scores."""
     import shutil
 
-    from tax3d.eval import episodes
-    from tax3d.sim import episode
+    from tax3d.eval import episodes, runner
 
     folder, _ = generated
     data = tmp_path / "data"
@@ -337,8 +336,8 @@ def test_an_interrupted_evaluation_resumes_with_the_missing_episodes(generated, 
     assert [p.name for p in (out / "episodes").iterdir()] == ["unseen-demo_0.pkl"]
     monkeypatch.setattr(episodes.Episodes, "keep", keep)
     run = []
-    run_episode = episode.run_episode
-    monkeypatch.setattr(episode, "run_episode", lambda *a, **k: run.append(1) or run_episode(*a, **k))
+    run_episode = runner.run_episode
+    monkeypatch.setattr(runner, "run_episode", lambda *a, **k: run.append(1) or run_episode(*a, **k))
     assert main([*command, "--out", str(out)]) == 0
     assert len(run) == 1 and not (out / "episodes").exists()
 
