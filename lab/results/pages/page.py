@@ -21,9 +21,9 @@ from pathlib import Path
 
 from tax3d.errors import UsageError
 from tax3d.metrics import split_rate
+from tax3d.variants import FIXED_GOALS, ROWS, paper_key, row_name
 from lab.results import kept
 from lab.results.commands import shown
-from lab.results.table import NAMES, PAPER_KEYS
 
 SPLITS = ("train", "unseen", "ood")
 ALIASES = {"success": "success_rate"}
@@ -125,8 +125,8 @@ class Page:
         if not m:
             raise UsageError(f"{self.file.name}: source {source.get('id')!r}: no label; expected one (only a row of "
                              "`tax3d table --keep`, table/TASK/DEMOS/VARIANT.json, goes without)")
-        key = PAPER_KEYS.get(m.group(2), m.group(2))
-        name = key if key in ("floor", "ceiling") else NAMES.get(key, key)
+        key = paper_key(m.group(2)) if m.group(2) in ROWS else m.group(2)
+        name = key if key in FIXED_GOALS else row_name(key)
         return slots(shared()["source"]["table-row"], {"name": name, "demos": m.group(1)})
 
     def _load(self, what: str, item: dict, kinds: tuple[str, ...]) -> dict:
