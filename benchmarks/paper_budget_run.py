@@ -8,6 +8,7 @@ The paper's 500,000 steps take hours even on one GPU. This script measures how f
 data loading, float32 with 6 data workers, bf16 with 6 data workers), then trains float32 with the fastest
 loading for --minutes, with `--train.steps` set to the number of steps that fit (the learning rate warms up and
 decays to 0 within the run, App. B.2) and validation on the first 10 `val` demos ten times along the way.
+The run (and each probe) is stopped with SIGINT when its minutes are up, saving last/.
 Writes OUT (as `tax3d train`) and OUT/budget.json: the machine, the probes' steps per second, the chosen steps
 and where it stopped. With --minutes 0 it only runs the probes and prints their summary.
 """
@@ -17,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -46,15 +48,21 @@ def steps_per_second(log: Path) -> float:
     return (last["step"] - first["step"]) / (last["seconds"] - first["seconds"])
 
 
-def run_training(command: list[str], out: Path) -> None:
-    """Run `tax3d train`; its progress bar goes to OUT.stderr, whose end is shown if it fails."""
+def run_training(command: list[str], out: Path, minutes: float) -> None:
+    """Run `tax3d train`, stopped with SIGINT after `minutes` (it saves last/ at the end of that step and exits with
+    130); its progress bar goes to OUT.stderr, whose end is shown if it fails."""
     errors = Path(str(out) + ".stderr")
     errors.parent.mkdir(parents=True, exist_ok=True)
     with open(errors, "w") as f:
-        done = subprocess.run(command, stderr=f)
-    if done.returncode != 0:
+        running = subprocess.Popen(command, stderr=f)
+        try:
+            code = running.wait(timeout=60 * minutes)
+        except subprocess.TimeoutExpired:
+            running.send_signal(signal.SIGINT)
+            code = 0 if running.wait() == 130 else running.returncode
+    if code != 0:
         print(errors.read_text()[-3000:], file=sys.stderr)
-        raise SystemExit(f"paper_budget_run.py: {' '.join(command)} exited with {done.returncode}")
+        raise SystemExit(f"paper_budget_run.py: {' '.join(command)} exited with {code}")
     errors.unlink()
 
 
@@ -62,9 +70,8 @@ def probe(args, precision: str, workers: int) -> float:
     out = Path(args.out + f"-probe-{precision}-w{workers}")
     shutil.rmtree(out, ignore_errors=True)
     run_training(train_command(args, out, ["--train.steps", "1000000", "--train.val-every", "1000000",
-                                           "--train.time-limit", str(args.probe_minutes),
                                            "--train.precision", precision, "--train.num-workers", str(workers)]),
-                 out)
+                 out, args.probe_minutes)
     rate = steps_per_second(out / "log.jsonl")
     shutil.rmtree(out)
     print(f"probe {precision}, {workers} data workers: {rate:.1f} steps/s", flush=True)
@@ -117,9 +124,9 @@ def main() -> int:
     steps = steps // 100 * 100 if steps >= 1000 else steps
     every = max(1, steps // 10)
     extra = ["--train.steps", str(steps), "--train.val-every", str(every), "--train.val-demos", "10",
-             "--data.val", args.val, "--train.time-limit", str(args.minutes), "--train.num-workers", str(workers)]
+             "--data.val", args.val, "--train.num-workers", str(workers)]
     print(f"training {steps} steps, validating every {every}", flush=True)
-    run_training(train_command(args, Path(args.out), extra), Path(args.out))
+    run_training(train_command(args, Path(args.out), extra), Path(args.out), args.minutes)
     records = read_log(Path(args.out) / "log.jsonl")
     vals = [(r["step"], r["val_rmse"]) for r in records if "val_rmse" in r]
     summary.update({

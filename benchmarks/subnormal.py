@@ -24,7 +24,7 @@ from train_step import demo_batches, emit  # noqa: E402
 from tax3d import config as cfg  # noqa: E402
 from tax3d import provenance  # noqa: E402
 from tax3d.model.tax3d import Tax3D  # noqa: E402
-from tax3d.train import TrainingLoss  # noqa: E402
+from tax3d.training.tax3d import TrainingLoss  # noqa: E402
 
 
 def timed_steps(run: Path, train: list[str], rounds: int) -> dict:

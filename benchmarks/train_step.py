@@ -34,7 +34,8 @@ from tax3d import provenance  # noqa: E402
 from tax3d import kept  # noqa: E402
 from tax3d.data.dataset import DemoDataset  # noqa: E402
 from tax3d.model.tax3d import Tax3D  # noqa: E402
-from tax3d.train import EpochItems, StepBatches, TrainingLoss, ema_decay  # noqa: E402
+from tax3d.training.batches import EpochItems, StepBatches  # noqa: E402
+from tax3d.training.tax3d import TrainingLoss, ema_decay  # noqa: E402
 
 PHASES = ("data", "forward", "backward", "optimizer", "rest")
 
@@ -64,7 +65,7 @@ def demo_batches(config: cfg.Config, train: list[str]):
 
 
 class Step:
-    """One training step of `config`, as the loop in tax3d.train makes it, with a timer around each phase."""
+    """One training step of `config`, as the loop in tax3d.training.loop makes it, with a timer around each phase."""
 
     def __init__(self, config: cfg.Config, batches, bf16: bool = False, compiled: bool = False,
                  attention: SDPBackend | None = None):

@@ -115,7 +115,7 @@ def test_huge_coordinates_are_a_bad_file(tmp_path, capsys, checkpoint):
 
 
 def test_non_finite_loss_stops_training_without_a_checkpoint(tmp_path, capsys, demos, monkeypatch):
-    from tax3d import train
+    from tax3d.training import tax3d as train
 
     forward = train.TrainingLoss.forward
 

@@ -13,7 +13,9 @@ import pytest
 import torch
 from safetensors.torch import load_file
 
-from tax3d import distributed, train
+from tax3d.checkpoint import STATE_NAME
+from tax3d.training import batches, distributed
+from tax3d.training import tax3d as learner
 from tax3d.cli import main
 from tax3d.data.dataset import make_sample
 from tax3d.data.format import save_demo
@@ -75,7 +77,7 @@ def test_two_processes_write_one_checkpoint_from_rank_0(runs):
     out = root / "two"
     assert sorted(p.name for p in out.iterdir()) == ["best", "config.json", "demos.json", "last", "log.jsonl", "summary.json"]
     assert [r["step"] for r in read_log(out)] == [1, 2]  # one writer: no line twice
-    assert torch.load(out / "last" / train.STATE_NAME, weights_only=True)["step"] == 2
+    assert torch.load(out / "last" / STATE_NAME, weights_only=True)["step"] == 2
     model = Tax3D.from_pretrained(out / "last")
     assert model.config.train.batch_size == 8  # the global batch, as in one process
     assert "Traceback" not in two.stderr
@@ -100,7 +102,7 @@ def test_resume_under_torchrun(runs):
     one, two = read_log(root / "one"), read_log(root / "two")
     assert [r["step"] for r in two] == [1, 2, 3, 4]
     assert_close_logs(one, two)
-    assert torch.load(root / "two" / "last" / train.STATE_NAME, weights_only=True)["step"] == 4
+    assert torch.load(root / "two" / "last" / STATE_NAME, weights_only=True)["step"] == 4
 
 
 def test_resume_with_another_number_of_processes(tmp_path, runs):
@@ -157,8 +159,8 @@ def test_options_that_make_no_sense_under_torchrun():
 
 
 def test_ranks_split_the_batches_of_one_process():
-    whole = train.StepBatches(10, 6, seed=3, start_step=4)
-    ranks = [train.StepBatches(10, 6, seed=3, start_step=4, rank=r, world_size=3) for r in range(3)]
+    whole = batches.StepBatches(10, 6, seed=3, start_step=4)
+    ranks = [batches.StepBatches(10, 6, seed=3, start_step=4, rank=r, world_size=3) for r in range(3)]
     streams = [iter(s) for s in (whole, *ranks)]
     for _ in range(5):
         batch, *shares = (next(s) for s in streams)
@@ -212,9 +214,9 @@ def test_bf16_autocasts_the_network_and_keeps_the_diffusion_maths_fp32(monkeypat
         return result
 
     monkeypatch.setattr(GaussianDiffusion, "vb_terms_bpd", recording)
-    fp32 = train.TrainingLoss(model, None, torch.device("cpu"))(batch, t, noise)
+    fp32 = learner.TrainingLoss(model, None, torch.device("cpu"))(batch, t, noise)
     assert seen == {"linear": torch.float32, "vb": {torch.float32}}
-    bf16 = train.TrainingLoss(model, torch.bfloat16, torch.device("cpu"))(batch, t, noise)
+    bf16 = learner.TrainingLoss(model, torch.bfloat16, torch.device("cpu"))(batch, t, noise)
     assert seen == {"linear": torch.bfloat16, "vb": {torch.float32}}
     for key in ("loss", "mse", "vb"):
         assert bf16[key].dtype == torch.float32 and torch.isfinite(bf16[key])
@@ -226,11 +228,11 @@ def test_bf16_autocasts_the_network_and_keeps_the_diffusion_maths_fp32(monkeypat
 
 
 def test_precision_errors(monkeypatch):
-    assert train.pick_precision("fp32", torch.device("cpu")) is None
-    assert train.pick_precision("bf16", torch.device("cpu")) == torch.bfloat16
+    assert learner.pick_precision("fp32", torch.device("cpu")) is None
+    assert learner.pick_precision("bf16", torch.device("cpu")) == torch.bfloat16
     with pytest.raises(UsageError, match="--train.precision 'fp16': expected fp32 or bf16"):
-        train.pick_precision("fp16", torch.device("cpu"))
-    monkeypatch.setattr(train, "native_bf16", lambda device: False)
+        learner.pick_precision("fp16", torch.device("cpu"))
+    monkeypatch.setattr(learner, "native_bf16", lambda device: False)
     with pytest.raises(UsageError, match="--train.precision bf16: cuda:0 has no native bfloat16 support") as err:
-        train.pick_precision("bf16", torch.device("cuda:0"))
+        learner.pick_precision("bf16", torch.device("cuda:0"))
     assert len(str(err.value).splitlines()) == 1

@@ -21,7 +21,7 @@ from tax3d.baselines.dp3.scheduler import DDIM, squaredcos_cap_v2_betas
 from tax3d.cli import main
 from tax3d.data.format import save_demo
 from tax3d.errors import UsageError
-from tax3d.plan import timing_step
+from tax3d.training.budget import timing_step
 from tax3d.sim.cloth import SIMPLE_CLOTH
 
 from tests.conftest import one_line_error
@@ -242,7 +242,7 @@ def test_train_command_writes_a_checkpoint_and_resumes_exactly(tmp_path, demos, 
 def test_one_run_one_folder(tmp_path, demos, monkeypatch, capsys):
     """A second run into a folder whose lock is held is refused; a rerun with other options or demos is refused,
     naming what differs, and trains nothing; --fresh starts afresh."""
-    from tax3d import runlock
+    from tax3d.training import runlock
 
     monkeypatch.setitem(cfg.PRESETS, "cpu", tiny_config)
     out = tmp_path / "run"
@@ -267,8 +267,6 @@ def test_a_minutes_plan_fixes_the_steps_from_the_measured_rate(tmp_path, demos, 
     wall time of the table's TAX3D rows), recorded in config.json; the run ends at that step."""
     import time
 
-    from tax3d.baselines.dp3 import train as dp3_train
-
     clock = iter(range(10_000))
     monkeypatch.setattr(time, "time", lambda: float(next(clock)))  # each call one second later
     monkeypatch.setitem(cfg.PRESETS, "cpu", lambda: tiny_config())
@@ -286,12 +284,12 @@ def test_a_planned_run_killed_and_resumed_ends_at_its_plan(tmp_path, demos, monk
     plan's last step."""
     import time
 
-    from tax3d.baselines.dp3 import train as dp3_train
+    from tax3d.training import batches
 
     clock = iter(range(100_000))
     monkeypatch.setattr(time, "time", lambda: float(next(clock)))
     monkeypatch.setitem(cfg.PRESETS, "cpu", lambda: tiny_config())
-    batch = dp3_train.step_batch
+    batch = batches.dp3_batch
 
     def dying(dataset, config, step, device):
         if step == 21:
@@ -300,11 +298,11 @@ def test_a_planned_run_killed_and_resumed_ends_at_its_plan(tmp_path, demos, monk
 
     args = ["train-dp3", "--data.train", str(demos), "--preset", "cpu", "--device", "cpu", "--data.task",
             "hangproccloth-simple", "--train.minutes", "2", "--out", str(tmp_path / "run")]
-    monkeypatch.setattr(dp3_train, "step_batch", dying)
+    monkeypatch.setattr(batches, "dp3_batch", dying)
     assert main(args) == 130
     saved = json.loads((tmp_path / "run" / "last" / "config.json").read_text())["train"]["steps"]
     assert saved > 21 and saved == json.loads((tmp_path / "run" / "config.json").read_text())["train"]["steps"]
-    monkeypatch.setattr(dp3_train, "step_batch", batch)
+    monkeypatch.setattr(batches, "dp3_batch", batch)
     assert main(args) == 0
     steps = json.loads((tmp_path / "run" / "config.json").read_text())["train"]["steps"]
     assert read_log(tmp_path / "run")[-1]["step"] == steps > 21

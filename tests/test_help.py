@@ -47,7 +47,7 @@ def test_a_default_the_description_gives_is_not_shown_again(name, capsys):
 def test_train_dp3_takes_the_preset_that_fits_the_machine(monkeypatch, capsys):
     import torch
 
-    from tax3d.baselines.dp3 import train as dp3_train
+    from tax3d.cli import train_dp3 as dp3_train
 
     for cuda, preset in ((False, "cpu"), (True, "paper")):
         monkeypatch.setattr(torch.cuda, "is_available", lambda: cuda)

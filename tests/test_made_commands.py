@@ -17,12 +17,12 @@ import tyro
 from tax3d import config as cfg
 from tax3d.cli import table
 from lab.results.commands import parses
-from tax3d.train import config_of_command, resolve_config
+from tax3d.cli.train import config_of_command, resolve_config
 
 ROOT = Path(__file__).resolve().parents[1]
 # train fields that change the weights; `steps` too unless the run was planned in minutes
 TRAIN_FIELDS = ("lr", "weight_decay", "warmup_steps", "batch_size", "grad_clip", "seed", "ema", "minutes",
-                "time_limit", "precision")
+                "precision")
 
 
 TRAIN_COMMAND = re.compile(r"\S*tax3d(\.cli)? train ")

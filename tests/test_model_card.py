@@ -39,12 +39,19 @@ def repository(tmp_path: Path, cards: list[dict], files: dict[str, dict]) -> Pat
     return root
 
 
-def checkpoint(tmp_path: Path, name: str, **settings) -> None:
+def checkpoint(tmp_path: Path, name: str, retired: dict | None = None, **settings) -> None:
+    """A tiny checkpoint with the given settings; `retired` ({"train": {"time_limit": 45.0}}): fields of an earlier
+    version's config.json, written into it."""
     model = tiny_model()
     for dotted, value in settings.items():
         section, key = dotted.split("__")
         setattr(getattr(model.config, section), key, value)
     model.save_pretrained(tmp_path / "checkpoints" / name)
+    path = tmp_path / "checkpoints" / name / "config.json"
+    data = json.loads(path.read_text())
+    for section, values in (retired or {}).items():
+        data[section].update(values)
+    path.write_text(json.dumps(data, indent=2) + "\n")
 
 
 def built(root: Path, name: str) -> str:
@@ -108,7 +115,7 @@ def test_model_card_of_a_run_s_last_weights_names_them_beside_the_lowest_validat
 
 def test_model_card_of_a_run_whose_log_was_not_kept_says_so(tmp_path):
     checkpoint(tmp_path, "tax3d-cp-x", data__task="hangbag", model__variant="cp", train__steps=4000,
-               train__time_limit=45.0, train__threads=1)
+               train__threads=1, retired={"train": {"time_limit": 45.0}})  # an earlier version's time limit
     root = repository(tmp_path, [{"checkpoint": "checkpoints/tax3d-cp-x", "eval": "evals/x.json", "data": "DATA",
                                   "train": "TRAIN"}],
                       {"evals/x.json": evaluation("hangbag", {"ood": {"episodes": 40, "success_rate": 0.8,

@@ -6,7 +6,7 @@ import json
 import subprocess
 import sys
 
-from tax3d import runlock
+from tax3d.training import runlock
 from tax3d.cli import main
 
 from tests.conftest import TINY, read_log, write_demos

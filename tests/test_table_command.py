@@ -6,7 +6,7 @@ import shutil
 
 import pytest
 
-from tax3d import train
+from tax3d.cli import train
 from tax3d.eval import ledger
 from tax3d.checkpoint import sha256
 from tax3d.errors import UsageError
@@ -192,7 +192,7 @@ def test_the_dp3_row_trains_on_the_same_demonstrations_with_trajectories(tmp_pat
         assert all(np.array_equal(train[k], with_traj[k]) for k in ("action_pc", "anchor_pc", "flow"))
     assert not load_demo(kept)["action_pc"].any()  # a train demo already there is left as it is
     trained = []
-    from tax3d.baselines.dp3 import train as dp3_train
+    from tax3d.cli import train_dp3 as dp3_train
 
     def fake_run(a):
         trained.append(a)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -10,12 +11,15 @@ import torch
 from safetensors.torch import load_file
 
 from tax3d import config as cfg
-from tax3d import train
+from tax3d.checkpoint import STATE_NAME
+from tax3d.cli import train
+from tax3d.training import batches, budget, validation
+from tax3d.training import tax3d as learner
 from tax3d.cli import main
 from tax3d.data.format import load_demo, save_demo
 from tax3d.metrics import rmse
 from tax3d.model.tax3d import Tax3D
-from tax3d.plan import Plan
+from tax3d.training.budget import Plan
 from tax3d.variants import VARIANTS
 
 from tests.conftest import TINY, read_log, synthetic_demo, write_demos
@@ -103,8 +107,8 @@ def test_outputs_and_config(tmp_path, demos):
     assert config.train.lr == cfg.cpu().train.lr  # preset values survive where no option is given
     assert sorted(p.name for p in (out / "best").iterdir()) == ["config.json", "model.safetensors"]
     assert sorted(p.name for p in (out / "last").iterdir()) == ["config.json", "model.safetensors",
-                                                                train.STATE_NAME]
-    state = torch.load(out / "last" / train.STATE_NAME, weights_only=True)
+                                                                STATE_NAME]
+    state = torch.load(out / "last" / STATE_NAME, weights_only=True)
     assert state["step"] == 6
     # the kept JSON: every validation and the last step, readable as a validation curve
     from lab.results import kept
@@ -148,7 +152,7 @@ def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, demos, monke
 
     # Kill the second run while it loads the batch of step 8 (its last checkpoint is at step 5) ...
     calls = {"n": 0}
-    getitem = train.EpochItems.__getitem__
+    getitem = batches.EpochItems.__getitem__
 
     def dying(self, key):
         calls["n"] += 1
@@ -156,10 +160,10 @@ def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, demos, monke
             raise KeyboardInterrupt
         return getitem(self, key)
 
-    monkeypatch.setattr(train.EpochItems, "__getitem__", dying)
+    monkeypatch.setattr(batches.EpochItems, "__getitem__", dying)
     assert main(["train", *args, "--out", str(tmp_path / "killed")]) == 130
     assert [r["step"] for r in read_log(tmp_path / "killed")][-1] == 7
-    monkeypatch.setattr(train.EpochItems, "__getitem__", getitem)
+    monkeypatch.setattr(batches.EpochItems, "__getitem__", getitem)
     # ... and resume it: the same losses, step for step, and the same weights
     assert main(["train", *args, "--out", str(tmp_path / "killed"), "--resume"]) == 0
     whole, resumed = read_log(tmp_path / "whole"), read_log(tmp_path / "killed")
@@ -189,7 +193,7 @@ def test_ctrl_c_saves_last_and_the_rerun_resumes_there(tmp_path, demos, signum):
     out = tmp_path / "run"
     command = [sys.executable, "-m", "tax3d.cli", "train", *TINY, "--out", str(out), "--data.train", str(demos),
                "--train.val_every", "1000000", "--train.num_workers", "1"]
-    env = {**os.environ, "PYTHONPATH": str(Path(train.__file__).parents[1]), "OMP_NUM_THREADS": "1"}
+    env = {**os.environ, "PYTHONPATH": str(Path(train.__file__).parents[2]), "OMP_NUM_THREADS": "1"}
     run = subprocess.Popen([*command, "--train.steps", "1000000"], env=env, stderr=subprocess.PIPE, text=True,
                            start_new_session=True)
     deadline = time.time() + 120
@@ -198,16 +202,22 @@ def test_ctrl_c_saves_last_and_the_rerun_resumes_there(tmp_path, demos, signum):
     os.killpg(run.pid, getattr(signal, signum))
     err = run.communicate(timeout=120)[1]
     assert run.returncode == 130, err[-2000:]
-    step = torch.load(out / "last" / train.STATE_NAME, weights_only=True)["step"]
+    step = torch.load(out / "last" / STATE_NAME, weights_only=True)["step"]
     assert step >= 3 and f"interrupted at step {step} of 1000000: saved {out / 'last'}" in err
     assert "tax3d train: interrupted" in err and "Traceback" not in err
     assert [r["step"] for r in read_log(out)] == list(range(1, step + 1))
 
-    # the same command again (a time limit, which only says when to stop, ends it after one step)
-    again = subprocess.run([*command, "--train.steps", "1000000", "--train.time_limit", "1e-9"], env=env,
-                           capture_output=True, text=True, timeout=300)
-    assert again.returncode == 0 and f"resuming {out} at step {step}" in again.stderr, again.stderr[-2000:]
-    assert [r["step"] for r in read_log(out)] == list(range(1, step + 2))
+    # the same command again, stopped the same way after a few more steps
+    again = subprocess.Popen([*command, "--train.steps", "1000000"], env=env, stderr=subprocess.PIPE, text=True,
+                             start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(read_log(out)) < step + 2:
+        time.sleep(0.2)
+    os.killpg(again.pid, getattr(signal, signum))
+    err = again.communicate(timeout=120)[1]
+    assert again.returncode == 130 and f"resuming {out} at step {step}" in err, err[-2000:]
+    end = torch.load(out / "last" / STATE_NAME, weights_only=True)["step"]
+    assert end >= step + 2 and [r["step"] for r in read_log(out)] == list(range(1, end + 1))
 
 
 def test_a_fresh_start_starts_a_fresh_log(tmp_path, demos):
@@ -283,11 +293,11 @@ def test_schedule_never_rises_after_the_warm_up():
 
 def test_ema_decay_warms_up():
     """The average's decay starts near 0.1, so it follows the early weights, and reaches the set decay later."""
-    assert train.ema_decay(0, 0.999) == pytest.approx(0.1)
-    decays = [train.ema_decay(s, 0.999) for s in range(20000)]
+    assert learner.ema_decay(0, 0.999) == pytest.approx(0.1)
+    decays = [learner.ema_decay(s, 0.999) for s in range(20000)]
     assert (np.diff(decays) >= 0).all() and decays[-1] == 0.999
-    assert train.ema_decay(100, 0.999) < 0.92  # without warm-up the average would keep ~90% of the initial weights
-    assert train.ema_decay(20, 0.5) == 0.5
+    assert learner.ema_decay(100, 0.999) < 0.92  # without warm-up the average would keep ~90% of the initial weights
+    assert learner.ema_decay(20, 0.5) == 0.5
 
 
 class _FixedSamples:
@@ -315,16 +325,16 @@ def test_validation_reports_coverage_where_demos_share_an_observation():
     second = {**cloth, "flow": cloth["flow"] + 3.0}  # the other hole: every point 3 units off the first goal
     goal = [d["action_pc"] + d["flow"] for d in (first, second, other)]
     samples = [np.stack([goal[1], goal[1]]), np.stack([goal[0], goal[0]]), np.stack([goal[2] + 1.0] * 2)]
-    record = train.validate(_FixedSamples(samples), [first, second, other], num_samples=2, seed=0)
+    record = validation.validate(_FixedSamples(samples), [first, second, other], num_samples=2, seed=0)
     assert record["val_rmse"] == pytest.approx((2 * 3 * 3**0.5 + 3**0.5) / 3)  # both cloth samples at the wrong hole
     assert record["val_coverage_rmse"] == pytest.approx(3**0.5 / 2)  # the cloth covered exactly, the other not
     assert record["val_precision_rmse"] == pytest.approx(3**0.5 / 2)  # every cloth sample lies on one of its goals
     one_hole = [np.stack([goal[0], goal[0]]), np.stack([goal[0], goal[0]]), samples[2]]
-    record = train.validate(_FixedSamples(one_hole), [first, second, other], num_samples=2, seed=0)
+    record = validation.validate(_FixedSamples(one_hole), [first, second, other], num_samples=2, seed=0)
     assert record["val_precision_rmse"] == pytest.approx(3**0.5 / 2)  # precise, though only one hole is covered
     assert record["val_coverage_rmse"] == pytest.approx((3 * 3**0.5 / 2 + 3**0.5) / 2)
-    assert train.scene_groups([(d["action_pc"], d["anchor_pc"]) for d in (first, other, second)]) == [[0, 2], [1]]
-    assert "val_coverage_rmse" not in train.validate(_FixedSamples(samples[2:]), [other], num_samples=2, seed=0)
+    assert validation.scene_groups([(d["action_pc"], d["anchor_pc"]) for d in (first, other, second)]) == [[0, 2], [1]]
+    assert "val_coverage_rmse" not in validation.validate(_FixedSamples(samples[2:]), [other], num_samples=2, seed=0)
 
 
 def test_validation_reports_the_error_at_the_grasped_vertices():
@@ -335,23 +345,23 @@ def test_validation_reports_the_error_at_the_grasped_vertices():
     off_grip, at_grip = goal.copy(), goal.copy()
     off_grip[[i for i in range(len(goal)) if i not in grip]] += 5.0
     at_grip[grip] += np.array([0.0, 0.0, 2.0])
-    assert train.validate(_FixedSamples([np.stack([off_grip, goal])]), [demo], 2, 0)["val_grip_error"] == 0.0
-    assert train.validate(_FixedSamples([np.stack([at_grip, goal])]), [demo], 2, 0)["val_grip_error"] == \
+    assert validation.validate(_FixedSamples([np.stack([off_grip, goal])]), [demo], 2, 0)["val_grip_error"] == 0.0
+    assert validation.validate(_FixedSamples([np.stack([at_grip, goal])]), [demo], 2, 0)["val_grip_error"] == \
         pytest.approx(1.0)
 
 
 def fake_step_clock(monkeypatch, seconds) -> None:
     """train's clock advances by seconds(n) at the n-th step (1-based) and stands still otherwise."""
     clock = {"now": 1000.0, "steps": 0}
-    monkeypatch.setattr(train.time, "time", lambda: clock["now"])
-    step_loss = train.TrainingLoss.forward
+    monkeypatch.setattr(time, "time", lambda: clock["now"])
+    step_loss = learner.TrainingLoss.forward
 
     def timed(self, *a):
         clock["steps"] += 1
         clock["now"] += seconds(clock["steps"])
         return step_loss(self, *a)
 
-    monkeypatch.setattr(train.TrainingLoss, "forward", timed)
+    monkeypatch.setattr(learner.TrainingLoss, "forward", timed)
 
 
 PLANNED = ["--train.minutes", "0.5", "--train.validations", "3", "--train.warmup_steps", "10"]
@@ -427,7 +437,7 @@ def test_a_plan_is_timed_again_at_every_validation(tmp_path, demos, monkeypatch)
 def killed_at_step(step: int, monkeypatch, args: list[str]) -> None:
     """`tax3d train ARGS` killed while it loads the batch of `step` (TINY's batch of 8), as by a SIGKILL: last/
     stays at the validation before."""
-    getitem = train.EpochItems.__getitem__
+    getitem = batches.EpochItems.__getitem__
     calls = {"n": 0}
 
     def dying(self, key):
@@ -436,9 +446,9 @@ def killed_at_step(step: int, monkeypatch, args: list[str]) -> None:
             raise KeyboardInterrupt
         return getitem(self, key)
 
-    monkeypatch.setattr(train.EpochItems, "__getitem__", dying)
+    monkeypatch.setattr(batches.EpochItems, "__getitem__", dying)
     assert main(args) == 130
-    monkeypatch.setattr(train.EpochItems, "__getitem__", getitem)
+    monkeypatch.setattr(batches.EpochItems, "__getitem__", getitem)
 
 
 def test_a_resumed_plan_is_timed_again_from_where_it_resumed(tmp_path, demos, monkeypatch):
@@ -486,7 +496,7 @@ def test_a_replanned_decay_goes_on_from_its_progress():
 
 
 def test_default_preset_fits_the_machine_and_long_runs_are_told(tmp_path, demos, capsys, monkeypatch):
-    monkeypatch.setattr(train, "LONG_RUN_HOURS", 0.0)
+    monkeypatch.setattr(budget, "LONG_RUN_HOURS", 0.0)
     args = [a for a in TINY if a not in ("--preset", "cpu")]
     assert main(["train", *args, "--out", str(tmp_path / "run"), "--data.train", str(demos),
                  "--train.steps", "30", "--train.val_every", "30", "--train.warmup_steps", "10"]) == 0
@@ -516,7 +526,7 @@ def test_a_cpu_fast_run_trains_on_128_points_and_predicts_and_validates_on_256(t
     validated = [r for r in read_log(out) if "val_rmse" in r]
     assert validated and math.isfinite(validated[-1]["val_rmse"])
     assert validated[-1]["val_rmse"] == pytest.approx(
-        train.validate(model, [load_demo(f) for f in sorted((tmp_path / "demos").glob("*.npz"))[:2]],
+        validation.validate(model, [load_demo(f) for f in sorted((tmp_path / "demos").glob("*.npz"))[:2]],
                        config.train.val_samples, seed=config.train.seed, points="sampled")["val_rmse"], rel=1e-5)
 
 
@@ -544,7 +554,8 @@ def test_help_explains_every_option(capsys):
     assert done.value.code == 0
     text = " ".join(capsys.readouterr().out.replace("│", " ").split())
     assert "--train.minutes" in text and "plan the run to end after this many minutes on this machine" in text
-    assert "unlike train.minutes, the learning rate has not decayed then; 0: no limit" in text
+    assert "(a curve's checkpoints, to score later; 0: only best/ and last/)" in text
+    assert "peak learning rate of AdamW, after the warm-up" in text and "time-limit" not in text
     assert "--model.variant" in text and "cd, cp, cd_w, cp_w, cd_nac, cp_nac, sd, sp, rd or rp" in text
     sections = (cfg.ModelConfig, cfg.DiffusionConfig, cfg.DataConfig, cfg.TrainConfig)
     own = sum("(default:" in doc for s in sections for doc in cfg.field_docs(s).values())  # gives its own default
@@ -574,21 +585,21 @@ def test_a_sampled_validation_measures_what_predict_returns_by_default():
     demo = synthetic_demo(0, n=90, m=70)  # larger clouds than the network trained on
     goal = demo["action_pc"] + demo["flow"]
     for points, max_points in (("sampled", None), ("whole", 0)):
-        record = train.validate(model, [demo], num_samples=2, seed=0, points=points)
+        record = validation.validate(model, [demo], num_samples=2, seed=0, points=points)
         [samples] = model.predict_scenes([(demo["action_pc"], demo["anchor_pc"])], num_samples=2, seed=0,
                                          max_points=max_points)
         assert samples.shape == (2, 90, 3)
         assert record["val_rmse"] == pytest.approx(min(np.sqrt(((s - goal) ** 2).sum(-1).mean()) for s in samples))
-    whole = train.validate(model, [demo], num_samples=2, seed=0, points="whole")["val_rmse"]
-    assert whole != pytest.approx(train.validate(model, [demo], num_samples=2, seed=0, points="sampled")["val_rmse"])
+    whole = validation.validate(model, [demo], num_samples=2, seed=0, points="whole")["val_rmse"]
+    assert whole != pytest.approx(validation.validate(model, [demo], num_samples=2, seed=0, points="sampled")["val_rmse"])
 
 
 def test_the_loop_validates_with_the_configured_points(tmp_path, monkeypatch):
     folder = tmp_path / "demos"
     folder.mkdir()
     save_demo(folder / "demo_0.npz", synthetic_demo(3))
-    asked, real = [], train.validate
-    monkeypatch.setattr(train, "validate", lambda *a, **k: asked.append(k["points"]) or real(*a, **k))
+    asked, real = [], validation.validate
+    monkeypatch.setattr(learner, "validate", lambda *a, **k: asked.append(k["points"]) or real(*a, **k))
     assert main(["train", *TINY, "--out", str(tmp_path / "run"), "--data.train", str(folder), "--data.val",
                  str(folder), "--train.steps", "2", "--train.val_every", "2", "--train.val_points", "sampled"]) == 0
     assert asked == ["sampled"]

@@ -3,7 +3,7 @@
     python -m lab.studies.val_points --checkpoint runs/ttq33/b8-p128-30min/best --val data/unimodal/val \
         --points 128 256 0 [--val-demos 20] [--samples 2] [--seed 42]
 
-The same measure as `tax3d train --train.val-points sampled` logs (`tax3d.train.validate`: the mean over the
+The same measure as `tax3d train --train.val-points sampled` logs (`tax3d.training.validation.validate`: the mean over the
 first `--val-demos` demos of the min-over-samples RMSE on whole clouds, the checkpoint's own sampler and steps),
 with `predict`'s max_points set to each of `--points` in turn (0: every point). Defaults: the checkpoint's
 train.val_demos, train.val_samples and train.seed, so that its own number of points repeats its log. Prints one
@@ -20,7 +20,7 @@ from tax3d import kept, provenance
 from tax3d.data.dataset import demo_files
 from tax3d.data.format import load_demo
 from tax3d.model.tax3d import Tax3D
-from tax3d.train import validate
+from tax3d.training.validation import validate
 from lab.studies import command_line
 
 

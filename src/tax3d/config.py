@@ -136,16 +136,13 @@ class TrainConfig:
     default (data.predict_points), its displacements spread to every point (the RMSE is on whole clouds either way)"""
     minutes: Annotated[float, NonNegative] = 0.0
     """plan the run to end after this many minutes on this machine: the step rate measured over the first steps
-    fixes train.steps (and so the cosine schedule) then, timed again at every validation (tax3d.plan); config.json
+    fixes train.steps (and so the cosine schedule) then, timed again at every validation (tax3d.training.budget); config.json
     records the planned steps (0: use steps)"""
     keep_every: Annotated[int, NonNegative] = 0
     """also keep the weights of each validation at a multiple of this many steps, in OUT/steps/STEP (a curve's
     checkpoints, to score later; 0: only best/ and last/)"""
     validations: Annotated[int, NonNegative] = 0
     """with train.minutes: validate this many times, evenly over the planned steps (0: every val_every steps)"""
-    time_limit: Annotated[float, NonNegative] = 0.0
-    """stop after this many minutes of training, as if at the last step, the schedule unchanged (unlike
-    train.minutes, the learning rate has not decayed then; 0: no limit)"""
     ema: Annotated[float, Fraction] = 0.0
     """decay of an exponential moving average of the weights (0: off); checkpoints then hold the average"""
     num_workers: Annotated[int, NonNegative] = 0
@@ -238,10 +235,12 @@ METADATA = ("weights_sha256", "extent")
 _SECTIONS = {"model": ModelConfig, "diffusion": DiffusionConfig, "data": DataConfig, "train": TrainConfig}
 RUN_STATE = object()
 RETIRED = {("model", "mean_input"): False, ("data", "target_scale"): 1.0,
-           ("train", "replan_step"): RUN_STATE, ("train", "replan_progress"): RUN_STATE}
+           ("train", "replan_step"): RUN_STATE, ("train", "replan_progress"): RUN_STATE,
+           ("train", "time_limit"): RUN_STATE}
 """fields of earlier versions' config.json, by the value at which each changes nothing: accepted there and dropped,
-any other value an error naming the field. RUN_STATE marks the knee of a re-planned --train.minutes run, kept in
-config.json by earlier versions and in the training state now (tax3d.plan): accepted at any value and dropped."""
+any other value an error naming the field. RUN_STATE marks a field that said only where a run stopped, not what it
+computed, accepted at any value and dropped: the knee of a re-planned --train.minutes run (kept in the training
+state now, tax3d.training.budget), and train.time_limit (a run is stopped partway with SIGINT or SIGTERM now)."""
 RETIRED_LOSSES = ("min_snr", "v_capped")
 """diffusion.loss values of earlier versions"""
 

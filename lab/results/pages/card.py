@@ -53,7 +53,7 @@ def run_lines(config: dict, records: list[dict], plan: dict | None) -> list[str]
     where = ("a GPU" if config["train"].get("device") == "cuda" else "one core" if threads == 1
              else f"{threads} threads" if threads else "torch's default threads")
     if not records:
-        limit = config["train"].get("time_limit", 0)
+        limit = config["train"].get("time_limit", 0)  # kept by earlier versions, which had train.time_limit
         return [f"- steps: a {config['train']['steps']:,}-step schedule" +
                 (f", cut by a {limit:g}-minute limit" if limit else "") +
                 f" on {where}; the run's log was not kept, so its steps done and validation curve are not known"]

@@ -13,8 +13,8 @@ from tax3d.errors import UsageError
 
 COMMANDS = {
     "generate": ("tax3d.cli.generate", "generate demonstrations in the official file layout"),
-    "train": ("tax3d.train", "train a TAX3D variant on demonstration folders"),
-    "train-dp3": ("tax3d.baselines.dp3.train", "train the DP3 baseline on demonstrations with trajectories"),
+    "train": ("tax3d.cli.train", "train a TAX3D variant on demonstration folders"),
+    "train-dp3": ("tax3d.cli.train_dp3", "train the DP3 baseline on demonstrations with trajectories"),
     "predict": ("tax3d.cli.predict", "predict goal clouds for demonstration files with a checkpoint"),
     "cloud": ("tax3d.cli.cloud", "turn a depth image, its mask, intrinsics and camera pose into a world-frame cloud"),
     "eval": ("tax3d.cli.eval", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),

@@ -18,12 +18,13 @@ from pathlib import Path
 from typing import Annotated
 
 from tax3d import config as cfg
-from tax3d import kept, provenance, train
+from tax3d import kept, provenance
 from tax3d.atomic import write_json, write_text
 from tax3d.baselines.dp3 import config as dp3_cfg
-from tax3d.baselines.dp3 import train as dp3_train
 from tax3d.checkpoint import WEIGHTS_NAME, read_log, sha256
 from tax3d.cli import eval as evaluation
+from tax3d.cli import train
+from tax3d.cli import train_dp3 as dp3_train
 from tax3d.config import PresetName, cpu_preset_of
 from tax3d.data.format import is_valid_demo, list_demos, strip_trajectories
 from tax3d.devices import pick_device

@@ -132,3 +132,23 @@ def mean(world: World, values: torch.Tensor) -> torch.Tensor:
     values = values.clone()
     dist.all_reduce(values)
     return values / world.size
+
+
+def mean_losses(world: World, losses: dict, *flags: bool) -> tuple[dict, list[bool]]:
+    """The losses of the whole global batch (the mean over ranks), and each flag (such as an interruption): whether
+    any rank raised it."""
+    if not world.distributed:
+        return {k: float(v.detach()) for k, v in losses.items()}, list(flags)
+    raised = [losses["loss"].new_tensor(float(flag)) for flag in flags]
+    values = mean(world, torch.stack([*(v.detach().float() for v in losses.values()), *raised])).tolist()
+    return dict(zip(losses, values[:len(losses)])), [v > 0 for v in values[len(losses):]]
+
+
+def agree(world: World, device: torch.device):
+    """The plan's numbers every rank takes: their mean over the ranks, rounded."""
+    def averaged(values: tuple) -> tuple:
+        if not world.distributed:
+            return values
+        means = mean(world, torch.tensor([float(v) for v in values], device=device))
+        return tuple(int(round(float(v))) for v in means)
+    return averaged

@@ -1,4 +1,5 @@
-"""The learning-rate schedule of a training run, and the wall-clock plan of one given in minutes (--train.minutes).
+"""The learning-rate schedule of a training run, and the wall-clock plan of one given in minutes (--train.minutes):
+the loop asks `Budget` for each step's learning rate and calls it at the timing step and at each validation.
 
 The learning rate warms up linearly to lr, then decays along a cosine to 0 at the last step (App. B.2). A planned
 run times its first steps (inside the warm-up, where the learning rate does not depend on the total) and one
@@ -12,9 +13,12 @@ step it resumed at, so that its minutes in all (the earlier part's are saved) st
 from __future__ import annotations
 
 import math
+import sys
 import time
 from dataclasses import dataclass
 from typing import Callable
+
+LONG_RUN_HOURS = 12  # a run planned longer than this is told so at its start
 
 Agree = Callable[[tuple], tuple]
 """the values every process of a run takes (under torchrun, the mean over processes)"""
@@ -149,3 +153,48 @@ class Plan:
     def steps_between_validations(self, seconds: float, step_seconds: float, val_seconds: float) -> int:
         """The steps (at least one) that fit `seconds` with a validation every val_every steps."""
         return max(1, int(seconds / (step_seconds + val_seconds / self.val_every)))
+
+
+class Budget:
+    """The loop's side of a Plan: the learning rate of each step, and the hooks that make the --train.minutes plan
+    at the timing step and time it again at each validation, handing each new plan to `planned(message)`."""
+
+    def __init__(self, plan: Plan, time_validation: Callable[[], float], agree: Agree,
+                 planned: Callable[[str], None], main: bool = True):
+        self.plan, self.time_validation, self.agree, self.planned, self.main = plan, time_validation, agree, planned, main
+
+    def start(self, step: int) -> None:
+        """Before the first step (of a resumed run too): a planned run lasts at least until its first steps are
+        timed."""
+        self.plan.resume(step)
+        if self.plan.minutes > 0 and step < timing_step(self.plan.warmup_steps):
+            self.plan.steps = max(self.plan.steps, timing_step(self.plan.warmup_steps))
+
+    def lr(self, step: int) -> float:
+        self.plan.start_step(step)
+        return self.plan.lr_at(step)
+
+    def timed(self, step: int, started: float) -> dict:
+        """After each step: at the timing step, the plan (the log line's `plan`), or, without minutes, a note when
+        the run would take long."""
+        if not self.plan.timing(step):
+            return {}
+        if self.plan.minutes == 0:
+            hours = self.plan.hours_left(step)
+            if self.main and hours > LONG_RUN_HOURS:
+                print(f"note: {self.plan.steps} steps at this machine's rate take about {hours:.0f} hours; "
+                      f"--train.minutes M plans a run that ends after M minutes", file=sys.stderr)
+            return {}
+        record = self.plan.make(step, started, self.time_validation, self.agree)
+        self.planned(f"planned {self.plan.steps} steps for {self.plan.minutes:g} minutes ({self.plan.step_seconds:.3f}"
+                     f" s per step, {self.plan.val_seconds:.1f} s per validation)")
+        return {"plan": record}
+
+    def validated(self, step: int, started: float, val_started: float) -> dict:
+        """After a validation begun at `val_started`: the re-plan (the log line's `replan`) where the steps change."""
+        replan = self.plan.retime(step, started, val_started, self.agree)
+        if replan is None:
+            return {}
+        self.planned(f"re-planned {self.plan.steps} steps for {self.plan.minutes:g} minutes "
+                     f"({self.plan.step_seconds:.3f} s per step since the last timing)")
+        return {"replan": replan}

@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+import shutil
 from pathlib import Path
 
 from tax3d import config as cfg
@@ -17,7 +18,7 @@ from tax3d.errors import UsageError
 
 DIGEST_NAME = "demos.json"
 HOW = {("train", "num_workers"), ("train", "threads"), ("train", "device"), ("train", "compile"),
-       ("train", "keep_every"), ("train", "time_limit")}
+       ("train", "keep_every")}
 """fields that change how or how long a run computes, not the steps it takes: a resumed run may set them otherwise"""
 PLANNED = {("train", "steps"), ("train", "val_every"), ("train", "save_every")}
 """fields a --train.minutes plan fixes at the run's start (config.json records them)"""
@@ -118,8 +119,6 @@ RUN_FILES = ("last", ".last.old", "best", ".best.old", "steps", "log.jsonl", "su
 
 
 def clear_run(out: Path) -> None:
-    import shutil
-
     for name in RUN_FILES:
         path = out / name
         if path.is_dir():
