@@ -34,7 +34,8 @@ def tiny_config(**data) -> cfg.DP3Config:
         model=cfg.ModelConfig(point_dims=(16, 32), encoder_dim=16, state_dims=(16, 16), down_dims=(16, 32),
                               step_embed_dim=16),
         data=cfg.DataConfig(num_action_points=16, num_anchor_points=16, **data),
-        train=cfg.TrainConfig(lr=1e-3, warmup_steps=2, batch_size=8, steps=4, save_every=2, threads=1),
+        train=cfg.TrainConfig(lr=1e-3, weight_decay=1e-6, warmup_steps=2, batch_size=8, steps=4, save_every=2,
+                              threads=1),
     )
 
 

@@ -108,8 +108,8 @@ class DataConfig:
 
 
 @dataclass
-class TrainConfig:
-    """The optimiser, schedule, validation and bookkeeping of a training run."""
+class ScheduleConfig:
+    """The optimiser and its schedule: the first fields of the train section of TAX3D and of DP3 alike."""
 
     lr: Annotated[float, Positive] = 1e-4
     """peak learning rate of AdamW, after the warm-up"""
@@ -119,6 +119,12 @@ class TrainConfig:
     """steps of linear warm-up before the cosine decay"""
     batch_size: Annotated[int, Positive] = 16
     """samples per step (the global batch, shared among processes under torchrun)"""
+
+
+@dataclass
+class TrainConfig(ScheduleConfig):
+    """The optimiser, schedule, validation and bookkeeping of a training run."""
+
     grad_clip: Annotated[float, NonNegative] = 1.0
     """clip the gradient norm to this (0: no clipping)"""
     steps: Annotated[int, Positive] = 500_000

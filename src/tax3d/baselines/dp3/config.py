@@ -10,7 +10,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tax3d.config import overrides_of, parse_sections, read_json
+from tax3d.config import ScheduleConfig, overrides_of, parse_sections, read_json
 from tax3d.errors import UsageError
 
 KIND = "dp3"
@@ -73,17 +73,10 @@ class DataConfig:
 
 
 @dataclass
-class TrainConfig:
-    """AdamW with a warm-up and cosine decay, an EMA of the weights, and the saves of last/."""
+class TrainConfig(ScheduleConfig):
+    """AdamW with a warm-up and cosine decay (lr, weight_decay, warmup_steps and batch_size as for TAX3D, DP3's values
+    in PAPER_SCHEDULE), an EMA of the weights, and the saves of last/."""
 
-    lr: float = 1e-4
-    """peak learning rate of AdamW, after the warm-up"""
-    weight_decay: float = 1e-6
-    """AdamW's weight decay"""
-    warmup_steps: int = 500
-    """steps of linear warm-up before the cosine decay"""
-    batch_size: int = 128
-    """samples per step"""
     steps: int = 112_500
     """optimizer steps of the run; the cosine decay ends at the last"""
     seed: int = 0
@@ -91,11 +84,14 @@ class TrainConfig:
     save_every: int = 5000
     """write last/ every this many steps (and at the end)"""
     minutes: float = 0.0
-    """plan the run to end after this many minutes on this machine: the step rate of the first steps fixes
-    train.steps (and so the cosine schedule), timed again at every save, recorded in config.json (0: use steps);
-    the table gives DP3 the wall time of the TAX3D rows"""
+    """plan the run to end after this many minutes on this machine, as TAX3D's train.minutes, timed again at every
+    save (0: use steps); the table gives DP3 the wall time of the TAX3D rows"""
     threads: int = 0
     """torch CPU threads (0: torch's default)"""
+
+
+PAPER_SCHEDULE = dict(weight_decay=1e-6, warmup_steps=500, batch_size=128)
+"""DP3's optimiser and schedule where they differ from TAX3D's (docs/dp3.md)"""
 
 
 @dataclass
@@ -103,7 +99,7 @@ class DP3Config:
     model: ModelConfig = field(default_factory=ModelConfig)
     diffusion: DiffusionConfig = field(default_factory=DiffusionConfig)
     data: DataConfig = field(default_factory=DataConfig)
-    train: TrainConfig = field(default_factory=TrainConfig)
+    train: TrainConfig = field(default_factory=lambda: TrainConfig(**PAPER_SCHEDULE))
 
 
 def paper() -> DP3Config:
@@ -119,7 +115,8 @@ def cpu() -> DP3Config:
     return DP3Config(
         model=ModelConfig(down_dims=(64, 128, 256), step_embed_dim=64),
         data=DataConfig(num_action_points=256, num_anchor_points=256),
-        train=TrainConfig(lr=3e-4, warmup_steps=50, batch_size=32, steps=3000, save_every=250, threads=1),
+        train=TrainConfig(**{**PAPER_SCHEDULE, "lr": 3e-4, "warmup_steps": 50, "batch_size": 32}, steps=3000,
+                          save_every=250, threads=1),
     )
 
 
