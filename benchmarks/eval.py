@@ -16,7 +16,7 @@ import numpy as np
 
 from tax3d import provenance
 from tax3d import kept
-from tax3d.demo import SHIPPED
+from tax3d.cli.demo import SHIPPED
 
 ROOT = Path(__file__).resolve().parents[1]
 from tax3d.cli.eval import Args, plan

@@ -57,7 +57,7 @@ def test_train_dp3_takes_the_preset_that_fits_the_machine(monkeypatch, capsys):
 
 
 def test_demo_without_the_shipped_checkpoints_says_where_they_are(monkeypatch, capsys, tmp_path):
-    from tax3d import demo
+    from tax3d.cli import demo
 
     monkeypatch.setattr(demo, "SHIPPED", tmp_path / "site-packages" / "checkpoints" / "tax3d-cd-simple")
     args = demo.Args(checkpoint=demo.SHIPPED, out=tmp_path / "out")

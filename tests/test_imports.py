@@ -96,3 +96,37 @@ def test_the_model_and_the_config_do_not_import_the_training_data():
     for name, targets in g.items():
         if name == "tax3d.config" or name.startswith("tax3d.model"):
             assert "tax3d.data.dataset" not in targets, name
+
+
+# The package's layers, bottom first: a module imports only from its own layer and those below it. The top-level
+# modules (errors, options, config, variants, geometry, checkpoint, ...) are the bottom layer.
+LAYERS = ("tax3d.data", "tax3d.model", "tax3d.baselines", "tax3d.sim", "tax3d.training", "tax3d.policies",
+          "tax3d.eval", "tax3d.cli")
+
+
+def layer(module: str) -> int:
+    return next((i + 1 for i, prefix in enumerate(LAYERS) if module == prefix or module.startswith(prefix + ".")),
+                0)
+
+
+def test_no_module_imports_a_layer_above_its_own():
+    g = package_graph()
+    assert {"tax3d.training.loop", "tax3d.eval.runner", "tax3d.cli.train", "tax3d.policies.goal"} <= set(g)
+    upward = [f"{a} -> {b}" for a, targets in sorted(g.items()) for b in sorted(targets)
+              if a != "tax3d" and layer(b) > layer(a)]  # `tax3d` itself: the front door, `from tax3d import Tax3D`
+    assert upward == []
+
+
+def test_the_package_imports_its_own_modules_at_module_level():
+    """A function-level import would hide a dependency from the reader (and from the layer test); only the front
+    door's lazy `Tax3D` (torch loads on first use, so the command line starts quickly) is one."""
+    found = []
+    for path in sorted((SRC / "tax3d").rglob("*.py")):
+        for function in ast.walk(ast.parse(path.read_text())):
+            if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for node in ast.walk(function):
+                    names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                             [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+                    if any(n.startswith("tax3d") for n in names) or (isinstance(node, ast.ImportFrom) and node.level):
+                        found.append(f"{path.relative_to(SRC)}: {function.name}")
+    assert found == ["tax3d/__init__.py: __getattr__"]

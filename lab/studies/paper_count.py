@@ -35,7 +35,7 @@ from tax3d import kept, provenance
 from tax3d.atomic import write_json
 from tax3d.checkpoint import read_log
 from tax3d.data.format import list_demos
-from tax3d.digest import demos_digest
+from tax3d.data.digest import demos_digest
 from lab.studies import command_line
 
 WRITE_EVERY = 300  # seconds between two writes of --keep while the arms train

@@ -125,3 +125,8 @@ def centre(points):
 def random_angle(generator: torch.Generator | None = None) -> float:
     """An angle drawn from U(0, 2 pi)."""
     return float(torch.rand((), generator=generator, dtype=torch.float64)) * 2.0 * math.pi
+
+
+def nearest_rows(points: np.ndarray, targets: np.ndarray) -> list[int]:
+    """The row of `points` nearest each target: the observed points a policy takes for the grasped ones."""
+    return [int(np.argmin(np.linalg.norm(points - t, axis=1))) for t in np.atleast_2d(targets)]

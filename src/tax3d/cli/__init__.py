@@ -19,7 +19,7 @@ COMMANDS = {
     "cloud": ("tax3d.cli.cloud", "turn a depth image, its mask, intrinsics and camera pose into a world-frame cloud"),
     "eval": ("tax3d.cli.eval", "evaluate a checkpoint: goal RMSE and policy success per split, with a report"),
     "table": ("tax3d.cli.table", "the paper's table of a task: generate, train and score each row, resumable"),
-    "demo": ("tax3d.demo", "the main job on the embedded default"),
+    "demo": ("tax3d.cli.demo", "the main job on the embedded default"),
 }
 RENAMED = {"benchmark": "table"}  # an earlier name of a command: its name today
 

@@ -28,7 +28,7 @@ from tax3d.cli import train_dp3 as dp3_train
 from tax3d.config import PresetName, cpu_preset_of
 from tax3d.data.format import is_valid_demo, list_demos, strip_trajectories
 from tax3d.devices import pick_device
-from tax3d.digest import demos_digest
+from tax3d.data.digest import demos_digest
 from tax3d.errors import UsageError
 from tax3d.eval import ledger
 from tax3d.eval.summary import format_table

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from tax3d.atomic import write_bytes
 from tax3d.data.format import _PlainUnpickler
-from tax3d.digest import feed
+from tax3d.data.digest import feed
 
 FOLDER = "episodes"
 IGNORED = ("checkpoint", "device", "denoising")

@@ -19,8 +19,9 @@ import json
 import os
 from pathlib import Path
 
-from tax3d.digest import demos_digest
+from tax3d.data.digest import demos_digest
 from tax3d.errors import UsageError
+from tax3d.sim.tasks import TEST_FIRST_INDEX, get_task
 
 ENV = "TAX3D_LEDGER"
 REPOSITORY_LEDGER = Path(__file__).resolve().parents[3] / "docs" / "results" / "table" / "ledger.jsonl"
@@ -110,16 +111,12 @@ def is_kept_row(line: dict, row: dict) -> bool:
 
 def _tests(first: int, episodes: int, size: int) -> bool:
     """Whether episodes first .. first + episodes - 1 reach the table's test indices of a split of `size`."""
-    from tax3d.sim.tasks import TEST_FIRST_INDEX
-
     return first < TEST_FIRST_INDEX + size and first + episodes > TEST_FIRST_INDEX
 
 
 def record_eval(args, summary: dict, demos) -> dict | None:
     """`tax3d eval`: a line where it scored test episodes, with the digests of the demos it read (`demos(split)`, the
     files; none where it drew the episodes from their seeds)."""
-    from tax3d.sim.tasks import get_task
-
     task = get_task(args.task)
     tested = {k: s for k, s in summary["splits"].items()
               if k in SPLITS and _tests(args.first_index, s["episodes"], task.sizes[k])}

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tax3d.geometry import nearest_rows
+
 
 @dataclass(frozen=True)
 class Sampling:
@@ -56,8 +58,6 @@ class GoalPolicy:
         """The action cloud the policy predicts from; with a camera, the grip rows follow the grasped vertices."""
         if self.observe is None:
             return cloth
-        from tax3d.sim.observe import nearest_rows
-
         seen = np.asarray(self.observe(self.env), dtype=np.float64)
         self.grip = nearest_rows(seen, cloth[list(self.env.mesh.grip_vertices())])
         return seen

@@ -19,6 +19,7 @@ import numpy as np
 import pybullet
 
 from tax3d.camera import depth_to_cloud
+from tax3d.geometry import nearest_rows
 from tax3d.options import NonNegative, Positive
 from tax3d.sim.anchor import SCALE, add_floor, load_anchor
 from tax3d.sim.camera import PROJECTION, opengl_camera, render_image
@@ -187,8 +188,3 @@ def camera_demo(env, demo: dict, spec: CameraSpec, rng: np.random.Generator) -> 
             for g, held in demo["anchors"].items()
         }
     return out
-
-
-def nearest_rows(points: np.ndarray, targets: np.ndarray) -> list[int]:
-    """The row of `points` nearest each target: the observed points a policy takes for the grasped ones."""
-    return [int(np.argmin(np.linalg.norm(points - t, axis=1))) for t in np.atleast_2d(targets)]

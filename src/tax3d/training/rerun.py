@@ -13,7 +13,7 @@ from pathlib import Path
 from tax3d import config as cfg
 from tax3d.atomic import write_text
 from tax3d.checkpoint import STATE_NAME, find_last
-from tax3d.digest import demos_digest
+from tax3d.data.digest import demos_digest
 from tax3d.errors import UsageError
 
 DIGEST_NAME = "demos.json"

@@ -11,7 +11,7 @@ from tax3d.cli.eval import Args as EvalArgs
 from tax3d.cli.eval import run as run_eval
 from tax3d.options import OutputFolder, Positive
 
-SHIPPED = Path(__file__).resolve().parents[2] / "checkpoints" / "tax3d-cd-simple"
+SHIPPED = Path(__file__).resolve().parents[3] / "checkpoints" / "tax3d-cd-simple"
 
 
 @dataclass
