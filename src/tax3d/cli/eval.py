@@ -20,6 +20,7 @@ from tax3d.eval.ledger import record_eval
 from tax3d.eval.outputs import write_outputs
 from tax3d.eval.runner import run_jobs
 from tax3d.eval.summary import format_table, summarise
+from tax3d import options
 from tax3d.options import Finite, NonNegative, OutputFolder, Positive
 from tax3d.parallel import check_backend
 from tax3d.policies.goal import Sampling
@@ -87,6 +88,15 @@ class Args:
     camera: CameraSpec = field(default_factory=CameraSpec)
     """with --observe camera and no demo folder for a split: the cameras (as `tax3d generate --camera.*`)"""
 
+    def conflicts(self):
+        if self.observe == "camera" and not self.camera.views:
+            yield "camera.views", self.camera.views, "none given; expected one or more of front, front-left, " \
+                                                     "front-right, back"
+        if self.goal == "model" and self.checkpoint is None:
+            yield "checkpoint", "", "missing; expected a checkpoint folder (or --goal demo or mean with --data)"
+        if self.goal != "model" and self.checkpoint is not None:
+            yield "checkpoint", self.checkpoint, f"not used with --goal {self.goal}; expected one or the other"
+
 
 def sampling_of(args: Args) -> Sampling:
     """The policy's sampling settings among the command's options."""
@@ -102,21 +112,14 @@ def plan(args: Args) -> list[EvalJob]:
 def evaluate(args: Args, progress: bool = True, record: bool = True) -> dict:
     """Run the episodes and write the outputs; a scoring of test episodes goes in the ledger first (tax3d.eval.ledger),
     unless `record` is False (`tax3d table` writes its own line, with the row)."""
+    options.check(args)
     task = get_task(args.task)
     check_backend(args.backend, args.workers, args.address)
-    if args.samples < 1:
-        raise UsageError(f"--samples {args.samples}: expected at least 1")
-    if args.observe == "camera" and not args.camera.views:
-        raise UsageError("--camera.views: none given; expected one or more of front, front-left, front-right, back")
     if args.goal == "model":
-        if args.checkpoint is None:
-            raise UsageError("--checkpoint: missing; expected a checkpoint folder (or --goal demo or mean with --data)")
         model = load_model(args.checkpoint, args.device)  # fails early, in one line, on a bad checkpoint or device
         _check_task(model, args)
         check_sampling(model, args.steps, args.sampler)
         variant = model.config.model.variant
-    elif args.checkpoint is not None:
-        raise UsageError(f"--checkpoint {args.checkpoint}: not used with --goal {args.goal}; expected one or the other")
     else:
         variant = f"{args.goal}-goal"
     jobs = plan(args)

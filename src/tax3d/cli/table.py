@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Annotated
 
 from tax3d import config as cfg
-from tax3d import kept, provenance
+from tax3d import kept, options, provenance
 from tax3d.atomic import write_json, write_text
 from tax3d.baselines.dp3 import config as dp3_cfg
 from tax3d.checkpoint import WEIGHTS_NAME, read_log, sha256
@@ -91,6 +91,16 @@ class Args:
     them once with more --workers than the rows are scored with"""
     device: str = "auto"
     """where training and evaluation's predictions run: auto (CUDA when there is one), cpu, cuda or cuda:K"""
+
+    def conflicts(self):
+        if self.steps is not None and self.minutes > 0:
+            yield "steps", self.steps, f"not with --minutes {self.minutes:g}; expected one budget"
+        variants = _rows(self)
+        unknown = [v for v in variants if v not in ROWS]
+        if unknown:
+            yield "variants", "", f"unknown row {unknown[0]!r}; expected some of {', '.join(ROWS)}, or all"
+        elif not variants:
+            yield "variants", "", "expected at least one variant"
 
 
 def preset_of(args: Args) -> str:
@@ -281,15 +291,9 @@ def _rows(args: Args) -> list[str]:
 
 def _check(args: Args) -> list[str]:
     get_task(args.task)
+    options.check(args)
     pick_device(args.device)  # a bad --device fails before any demonstration is generated
-    if args.steps is not None and args.minutes > 0:
-        raise UsageError(f"--steps {args.steps}: not with --minutes {args.minutes:g}; expected one budget")
     variants = _rows(args)
-    unknown = [v for v in variants if v not in ROWS]
-    if unknown:
-        raise UsageError(f"--variants: unknown row {unknown[0]!r}; expected some of {', '.join(ROWS)}, or all")
-    if not variants:
-        raise UsageError("--variants: expected at least one variant")
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
         for variant in variants:
