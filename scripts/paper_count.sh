@@ -17,11 +17,15 @@ PYTHON=${PYTHON:-.venv/bin/python}
 pair() {
   case $1 in
     unimodal-cpu-scene) ARMS=(cpu "" scene "--data.rotate-scene True"); TASK=hangproccloth-unimodal; DATA=unimodal;;
+    # the paper's anchor rotation (App. B); the authors' scene rotation with the paper's DiT (128 x 5) and points
+    unimodal-anchor-capacity) ARMS=(anchor "--data.rotate True"
+                                    capacity "--data.rotate-scene True --model.hidden-size 128 --model.depth 5 --data.num-action-points 512 --data.num-anchor-points 512")
+                              TASK=hangproccloth-unimodal; DATA=unimodal;;
     *) return 1;;
   esac
 }
 
-PAIRS="unimodal-cpu-scene"
+PAIRS="unimodal-cpu-scene unimodal-anchor-capacity"
 if [ "${1:-}" = --list ]; then echo "$PAIRS"; exit 0; fi
 NAME=${1:-}; HOURS=${2:-2}
 pair "$NAME" || { echo "scripts/paper_count.sh: unknown pair '$NAME'; expected one of: $PAIRS" >&2; exit 2; }
