@@ -5,8 +5,8 @@ episodes in docs/results/table/ledger.jsonl (tax3d.eval.ledger). The line above 
 rows' own fields (the preset, plan, weights and test episodes most of them share, how often the ledger says they were
 scored, the data draw the table names), and a row that departs from it says how in its last column: another preset
 or plan, last weights, another draw or no digests recorded, scored more than once (with each earlier score). Every
-row of the paper's table is listed; a row we have not run yet says so. Below it, each conclusion the paper draws from the table (its `claims` in paper.toml)
-is tested on our rows: a success rate is lower only when the two 95% intervals part ("holds"); when they overlap
+row of the paper's table is listed at every training-set size; a row we have not run there yet says so. Below it,
+each conclusion the paper draws from the table (its `claims` in paper.toml) is tested on our rows: a success rate is lower only when the two 95% intervals part ("holds"); when they overlap
 the difference is "within noise".
 """
 
@@ -161,9 +161,9 @@ def check_draw(where: str, demos: int, draw: dict, kept: dict[str, dict]) -> dic
 
 def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]], lines: list[dict] = (),
              draws: dict[int, dict] | None = None) -> list[str]:
-    """One table per training-set size: each of the paper's rows (at smaller sizes, those we ran), its success and
-    RMSE beside ours, and how it departs from the protocol of the table; `lines` the ledger, `draws` the draw each
-    table names (lab.results.table.check_draw)."""
+    """One table per training-set size: each of the paper's rows, its success and RMSE beside ours (a row not kept
+    at that size: "not run yet"), and how it departs from the protocol of the table; `lines` the ledger, `draws` the
+    draw each table names (lab.results.table.check_draw)."""
     paper_rows = paper.get("rows", {})
     keys = [k for k in ORDER if k in paper_rows or k in FIXED]
     out = []
@@ -176,9 +176,7 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]], lines: li
                 "| row | success unseen | paper | success ood | paper | RMSE unseen | paper | RMSE ood | paper | "
                 "departs from the protocol |",
                 "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
-        # below the largest size only the rows run there (TAX3D-CD and -CP at the paper's count) are listed
-        listed = keys if demos == max(rows) else [k for k in keys if k in kept]
-        for key in listed:
+        for key in keys:
             row, theirs = kept.get(key), paper_rows.get(key, {})
             rmse = theirs.get("rmse", (None, None, None))
             success = theirs.get("success", (None, None, None))
@@ -187,7 +185,7 @@ def markdown(task: str, paper: dict, rows: dict[int, dict[str, dict]], lines: li
                        f"{cell(rmse[1], '.3f')} | {_rmse(row, 'ood')} | {cell(rmse[2], '.3f')} | "
                        f"{'' if row is None else protocol.departures(row)} |")
         out.append("")
-        out += _goal_table(listed, kept, paper_rows)
+        out += _goal_table(keys, kept, paper_rows)
     out += conclusions(paper, rows)
     return out
 
